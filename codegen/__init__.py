@@ -1,0 +1,1 @@
+"""OdeSystem -> differentiable torch physics block."""

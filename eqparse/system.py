@@ -1,0 +1,60 @@
+"""The checked ODE system every later layer consumes."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import sympy
+
+
+def deriv_symbol(name: str, k: int) -> sympy.Symbol:
+    """The sympy symbol standing for the k-th time derivative of state `name`.
+
+    Primes are part of the symbol's name (x, x', x''), so expressions print as the user
+    wrote them; codegen maps these symbols onto slices of the state tensor.
+    """
+    return sympy.Symbol(name + "'" * k)
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """What an equation file says about one learnable constant."""
+
+    init: float | None = None
+    min: float | None = None
+    max: float | None = None
+    unit: str | None = None
+
+
+@dataclass
+class OdeSystem:
+    """An autonomous ODE system in normal form.
+
+    states: state variable names in a stable order (order of their first equation).
+    orders: highest derivative order of each state.
+    rhs: for each state, the expression of its highest derivative in terms of
+        deriv_symbol(state, k) for k below its order, the learnable constants and the
+        fixed constants (as plain Symbols named like the constants).
+    fixed: fixed constants and their values (g, pi, e, or ones the caller fixed).
+    learnable: learnable constant names in a stable order.
+    text: the original equation text.
+    """
+
+    states: tuple[str, ...]
+    orders: dict[str, int]
+    rhs: dict[str, sympy.Expr]
+    fixed: dict[str, float] = field(default_factory=dict)
+    learnable: tuple[str, ...] = ()
+    text: str = ""
+
+    @property
+    def max_order(self) -> int:
+        return max(self.orders.values())
+
+    @property
+    def dim(self) -> int:
+        """Number of latent dimensions: one per state variable."""
+        return len(self.states)
+
+    def normal_form(self) -> list[str]:
+        """One line per state, e.g. "x'' = -g*sin(x)/L - z*x'"."""
+        return [f"{s}{chr(39) * self.orders[s]} = {sympy.sstr(self.rhs[s])}" for s in self.states]

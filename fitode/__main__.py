@@ -1,0 +1,5 @@
+import sys
+
+from fitode.cli import main
+
+sys.exit(main())

@@ -1,0 +1,71 @@
+"""The `fitode` command: `fitode VIDEO --eq ...` runs a fit; other verbs live beside it.
+
+Each verb is a module `fitode.cmd_<verb>` with `add_arguments(parser)` and
+`run(args) -> int`. A first argument that is not a verb means the main job (`run`).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from fitode.errors import FitodeError
+
+VERBS = {
+    "run": "fit a video (the default: `fitode VIDEO --eq ...`)",
+    "check": "parse an equation and report what a video can measure",
+    "codegen": "print the generated torch code for an equation",
+    "synth": "render a synthetic video of an equation",
+    "bench": "run a benchmark and print its table",
+    "batch": "fit many videos listed in a manifest",
+}
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports bad flags in one line with status 2 (argparse prints usage too)."""
+
+    def error(self, message: str) -> None:  # noqa: D401
+        raise FitodeError(f"{self.prog}: {message}")
+
+
+def build_parser(verb: str) -> argparse.ArgumentParser:
+    parser = _Parser(prog=f"fitode {verb}" if verb != "run" else "fitode", description=VERBS[verb])
+    _module(verb).add_arguments(parser)
+    return parser
+
+
+def _module(verb: str):
+    return importlib.import_module(f"fitode.cmd_{verb}")
+
+
+def _usage() -> str:
+    lines = ["usage: fitode VIDEO --eq TEXT [options]   (fit a video; `fitode run -h` for options)",
+             "       fitode VERB [options]", "", "verbs:"]
+    lines += [f"  {v:<8} {h}" for v, h in VERBS.items()]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(_usage())
+        return 0 if argv else 2
+    if argv[0] == "--version":
+        from fitode import __version__
+        print(f"fitode {__version__}")
+        return 0
+    verb = argv[0] if argv[0] in VERBS else "run"
+    rest = argv[1:] if argv[0] in VERBS else argv
+    try:
+        args = build_parser(verb).parse_args(rest)
+        return int(_module(verb).run(args) or 0)
+    except FitodeError as exc:
+        print(f"fitode: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("fitode: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

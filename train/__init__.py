@@ -1,0 +1,1 @@
+"""Encoders, latent loss, windowing and the trainer."""
