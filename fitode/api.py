@@ -1,0 +1,77 @@
+"""`fitode.fit`: the public API on arrays of frames."""
+from __future__ import annotations
+
+from typing import Iterable, Mapping
+
+import numpy as np
+import torch
+
+from fitode.eqparse import FitodeError, OdeSystem, ParamSpec
+from fitode.train.encoders import normalise_frames
+from fitode.train.result import FitResult
+from fitode.train.trainer import Callback, TrainConfig, fit_frames
+
+
+def fit(frames, dt: float, *, eq: str | None = None, system: str | OdeSystem | None = None,
+        eq_file: str | None = None, const: Mapping[str, float] | None = None, free: Iterable[str] = (),
+        init: Mapping[str, float] | None = None, params: Mapping[str, ParamSpec] | None = None,
+        prior: tuple[float, float] | None = None, train_fraction: float = 1.0,
+        callback: Callback | None = None, progress: bool = True, **options) -> FitResult:
+    """Estimate the learnable constants of an equation from a frame sequence.
+
+    frames: (T, H, W), (T, C, H, W) or (T, H, W, C) with C in {1, 3}, numpy or torch, any range.
+    dt: seconds between consecutive frames.
+    The equation is given as text (eq), a shipped system name or an OdeSystem (system), or an
+    equation file (eq_file). const fixes constants, free frees known ones, init sets starting
+    values for every restart, prior overrides the equation file's (mean, std).
+    options: any TrainConfig field (restarts, max_steps, window, integrator, substeps, encoder,
+    use_kl, lr, const_lr, batch_windows, seed, device, ...).
+    """
+    ode, spec_params, spec_prior = _equation(eq, system, eq_file, const, free)
+    if params is not None:
+        spec_params = {**spec_params, **params}
+    unknown = set(options) - set(TrainConfig.__dataclass_fields__)
+    if unknown:
+        raise FitodeError(f"unknown option(s): {', '.join(sorted(unknown))}")
+    if not ode.learnable:
+        raise FitodeError("the equation has no learnable constant to estimate")
+    if not (dt > 0 and np.isfinite(dt)):
+        raise FitodeError(f"dt must be a positive number of seconds, got {dt}")
+    config = TrainConfig(**options, prior=tuple(prior) if prior is not None else spec_prior)
+    if config.prior[1] <= 0:
+        raise FitodeError("the prior's standard deviation must be positive")
+    x = as_frames(frames)
+    if not 0 < train_fraction <= 1:
+        raise FitodeError("train_fraction must be in (0, 1]")
+    n_train = max(int(round(train_fraction * x.shape[0])), 1)
+    return fit_frames(normalise_frames(x), float(dt), ode, spec_params, config, train_frames=n_train,
+                      init=init, callback=callback, progress=progress)
+
+
+def as_frames(frames) -> torch.Tensor:
+    """Any common frame layout -> float32 (T, C, H, W)."""
+    x = torch.as_tensor(np.asarray(frames) if not isinstance(frames, torch.Tensor) else frames)
+    x = x.detach().to(torch.float32)
+    if x.ndim == 3:
+        x = x[:, None]
+    elif x.ndim == 4 and x.shape[-1] in (1, 3) and x.shape[1] not in (1, 3):
+        x = x.permute(0, 3, 1, 2)
+    if x.ndim != 4:
+        raise FitodeError(f"frames must be (T, H, W) or (T, C, H, W), got shape {tuple(x.shape)}")
+    if x.shape[0] < 2:
+        raise FitodeError("need at least two frames")
+    if not torch.isfinite(x).all():
+        raise FitodeError("frames contain NaN or infinite values")
+    return x.contiguous()
+
+
+def _equation(eq, system, eq_file, const, free) -> tuple[OdeSystem, dict[str, ParamSpec], tuple[float, float]]:
+    if isinstance(system, OdeSystem):
+        if eq is not None or eq_file is not None:
+            raise FitodeError("give the equation once: eq, system or eq_file")
+        return system, {}, (0.0, 1.0)
+    from fitode.eqfile import resolve
+    ode, spec = resolve(eq=eq, eq_file=eq_file, system=system, const=const, free=free)
+    if spec is None:
+        return ode, {}, (0.0, 1.0)
+    return ode, dict(spec.parameters), (spec.prior_mean, spec.prior_std)

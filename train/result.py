@@ -1,0 +1,133 @@
+"""What a fit returns: estimates, their spread, every run's history, the latent and the rollout."""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class Estimate:
+    value: float
+    std: float
+    n_runs: int
+    unit: str | None = None
+
+
+@dataclass
+class RunRecord:
+    """One restart: where it started, where it ended, and how it got there."""
+
+    index: int
+    seed: int
+    init: dict[str, float]
+    final: dict[str, float]
+    loss: float
+    steps: int
+    status: str  # "ok" | "failed"
+    error: str | None = None
+    converged: bool = False
+    wall_s: float = 0.0
+    history: dict[str, Any] = field(default_factory=dict)  # step, loss, mse, kl, constants{name: [...]}
+
+
+@dataclass
+class FitResult:
+    """The outcome of `fitode.fit`.
+
+    parameters: the estimate of each learnable constant (mean over the selected runs) and its
+        spread (standard deviation over the selected runs; 0 when only one was selected).
+    selected: indices of the runs the estimate comes from: the finite runs whose final loss is
+        within `selection_factor` of the lowest final loss.
+    latent: (T, d) the best run's encoder applied to every frame, training range and beyond.
+    rollout: (T, d) the physics rollout from the first frames with the best run's constants.
+    time: (T,) seconds from the first frame; frames at index >= train_frames were not trained on.
+    """
+
+    parameters: dict[str, Estimate]
+    runs: list[RunRecord]
+    selected: list[int]
+    best: int
+    latent: np.ndarray
+    rollout: np.ndarray
+    time: np.ndarray
+    train_frames: int
+    dt: float
+    states: list[str]
+    equation: str
+    fixed: dict[str, float]
+    settings: dict[str, Any]
+    selection_factor: float = 1.5
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def values(self) -> dict[str, float]:
+        return {k: e.value for k, e in self.parameters.items()}
+
+    @property
+    def failed(self) -> list[int]:
+        return [r.index for r in self.runs if r.status != "ok"]
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {
+            "parameters": {k: asdict(v) for k, v in self.parameters.items()},
+            "selected": self.selected,
+            "best": self.best,
+            "selection_factor": self.selection_factor,
+            "equation": self.equation,
+            "states": self.states,
+            "fixed": self.fixed,
+            "dt": self.dt,
+            "train_frames": self.train_frames,
+            "time": self.time.tolist(),
+            "latent": self.latent.tolist(),
+            "rollout": self.rollout.tolist(),
+            "runs": [asdict(r) for r in self.runs],
+            "settings": self.settings,
+            "meta": self.meta,
+        }
+        return _finite_json(d)
+
+    def save(self, path: str | Path) -> Path:
+        path = Path(path)
+        path.write_text(json.dumps(self.to_dict(), indent=1))
+        return path
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "FitResult":
+        return cls(
+            parameters={k: Estimate(**v) for k, v in d["parameters"].items()},
+            runs=[RunRecord(**r) for r in d["runs"]],
+            selected=list(d["selected"]),
+            best=int(d["best"]),
+            latent=np.asarray(d["latent"], dtype=float),
+            rollout=np.asarray(d["rollout"], dtype=float),
+            time=np.asarray(d["time"], dtype=float),
+            train_frames=int(d["train_frames"]),
+            dt=float(d["dt"]),
+            states=list(d["states"]),
+            equation=d["equation"],
+            fixed=dict(d["fixed"]),
+            settings=dict(d["settings"]),
+            selection_factor=float(d.get("selection_factor", 1.5)),
+            meta=dict(d.get("meta", {})),
+        )
+
+    @classmethod
+    def load(cls, path: str | Path) -> "FitResult":
+        return cls.from_dict(json.loads(Path(path).read_text()))
+
+
+def _finite_json(obj: Any) -> Any:
+    """JSON has no NaN/inf: a failed run's non-finite numbers are written as null."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_json(v) for v in obj]
+    return obj
