@@ -1,0 +1,310 @@
+"""The single-video job behind `fitode VIDEO --eq ...` (and each item of `fitode batch`).
+
+run_video reads the video, says what it understood, fits, calibrates when asked, and writes
+an output folder: result.json (the report), fit.json (the full FitResult with every run's
+history, reloadable with FitResult.load), latent.png, params.png, loss.png and frames.png.
+An interrupted run (Ctrl-C) or one where every restart failed still leaves a folder, with
+result.json marked "incomplete" or "failed" and whatever plots its data allow.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping
+
+from fitode.errors import FitodeError
+
+DEFAULT_TRAIN_FRACTION = 1.0
+RUNS_DIR = "fitode-runs"
+
+
+@dataclass
+class RunOutcome:
+    """What run_video returns. report is exactly what result.json holds."""
+
+    result: Any  # fitode.train.result.FitResult (not imported here so `import fitode.pipeline` stays light)
+    out_dir: Path
+    report: dict[str, Any]
+    warnings: list[str] = field(default_factory=list)
+
+
+def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str | None = None,
+              eq_file: str | None = None, system: str | None = None, const: Mapping[str, float] | None = None,
+              free: Iterable[str] = (), init: Mapping[str, float] | None = None,
+              prior: tuple[float, float] | None = None, fps: float | None = None, start: float | None = None,
+              end: float | None = None, roi=None, size=None, color: bool = False, stride: int | str = "auto",
+              mask=None, calibrate: str | None = None, train_fraction: float = DEFAULT_TRAIN_FRACTION,
+              progress: bool = False, log: Callable[[str], None] | None = print,
+              **train_options) -> RunOutcome:
+    """Fit one video and write its output folder; see the module docstring.
+
+    out_dir None makes a new folder fitode-runs/<video-stem>-<YYYYmmdd-HHMMSS>[-N] under the
+    current directory; a given out_dir must not exist or be empty. log receives the human
+    text (what was understood, per-run summaries, calibration, where files went); None
+    silences it. train_options are TrainConfig fields (restarts, max_steps, window,
+    integrator, encoder, device, seed, ...) plus `callback` (called with every StepInfo).
+    Raises FitodeError (one-line message) for any bad input; KeyboardInterrupt propagates after
+    the partial folder is written.
+    """
+    from fitode import report as rep
+
+    say = log if log is not None else (lambda _line: None)
+    user_callback = train_options.pop("callback", None)
+    _check_train_options(train_options)
+    if not 0 < train_fraction <= 1:
+        raise FitodeError(f"--train-fraction must be in (0, 1], got {train_fraction}")
+    if prior is not None and not (len(prior) == 2 and prior[1] > 0):
+        raise FitodeError("--prior needs MEAN,STD with STD > 0")
+
+    # Cheap checks first: a typo in the equation or the calibration must not cost a video decode.
+    ode, spec = _resolve_equation(eq, eq_file, system, const, free)
+    if not ode.learnable:
+        raise FitodeError("the equation has no learnable constant to estimate (every name is fixed)")
+    if init:
+        unknown = sorted(set(init) - set(ode.learnable))
+        if unknown:
+            raise FitodeError(f"--init names {', '.join(unknown)}, which is not a learnable constant "
+                              f"(learnable: {', '.join(ode.learnable)})")
+    points = None
+    if calibrate is not None:
+        from fitode.calibrate import parse_calibration
+        points = parse_calibration(calibrate, ode.states)
+    target = _check_out_dir(out_dir)
+    analysis = rep.analysis_dict(ode)
+    params = dict(spec.parameters) if spec is not None else {}
+    spec_prior = (spec.prior_mean, spec.prior_std) if spec is not None else (0.0, 1.0)
+    use_prior = tuple(float(v) for v in prior) if prior is not None else tuple(float(v) for v in spec_prior)
+
+    clip = _read(video, fps=fps, start=start, end=end, roi=roi, size=size, color=color, stride=stride, mask=mask,
+                 progress=progress)
+    n_frames = int(clip.frames.shape[0])
+    n_train = max(int(round(train_fraction * n_frames)), 1)
+    window = int(train_options.get("window", _train_default("window")))
+    if n_frames == 0:
+        raise FitodeError(f"{video}: no frames to fit (check --start/--end)")
+    if n_train < window + 1:
+        raise FitodeError(f"{n_train} training frames are fewer than one window of {window} frames plus one; "
+                          "use a longer clip, a smaller --stride or a smaller --window")
+    if points is not None:
+        from fitode.calibrate import check_times
+        check_times(points, (n_frames - 1) * clip.dt)
+
+    settings = {**_train_defaults(), **train_options, "prior": list(use_prior), "train_fraction": train_fraction}
+    for line in rep.understanding_lines(ode, spec, analysis, clip, n_train, settings):
+        say(line)
+
+    folder = _make_out_dir(target, Path(str(video)).stem)
+    recorder = _Recorder(ode.learnable, user_callback)
+    report = rep.base_report(video, clip, ode, spec, analysis, settings, n_train, folder)
+    rep.write_json(report, folder / "result.json")  # "running": even a hard kill leaves a marked folder
+    plots_done: list[str] = []
+    from fitode import plots
+    _try_plot(plots.plot_frames, folder / "frames.png", clip.frames, clip.dt, plots_done=plots_done)
+
+    from fitode.api import fit
+    try:
+        result = fit(clip.frames, clip.dt, system=ode, params=params, init=init, prior=use_prior,
+                     train_fraction=train_fraction, callback=recorder, progress=progress, **train_options)
+    except KeyboardInterrupt:
+        _write_partial(report, recorder, folder, "incomplete", "interrupted (Ctrl-C) during training", plots_done)
+        say(f"interrupted: partial results in {folder}")
+        raise
+    except FitodeError as exc:
+        _write_partial(report, recorder, folder, "failed", str(exc), plots_done)
+        raise
+
+    for line in rep.run_lines(result):
+        say(line)
+    calibration = None
+    if points is not None:
+        from fitode.calibrate import calibrate_result
+        calibration = calibrate_result(result, ode, params, points, analysis)
+        for line in calibration.lines():
+            say(line)
+    rep.complete_report(report, result, analysis, calibration)
+    result.meta.update({"input": report["input"], "calibration": report["calibration"]})
+    result.save(folder / "fit.json")
+    plot_warnings = _plots_for_result(folder, result, report, calibration, plots_done)
+    report["warnings"] += plot_warnings
+    report["files"] = sorted(["result.json", "fit.json", *plots_done])
+    rep.write_json(report, folder / "result.json")
+    say(f"wrote {folder}/ ({', '.join(report['files'])})")
+    return RunOutcome(result=result, out_dir=folder, report=report, warnings=list(report["warnings"]))
+
+
+# ---------------------------------------------------------------------------------------------
+def _train_defaults() -> dict[str, Any]:
+    from dataclasses import asdict
+    from fitode.train.trainer import TrainConfig
+    d = asdict(TrainConfig())
+    d.pop("prior", None)
+    return d
+
+
+def _train_default(name: str) -> Any:
+    return _train_defaults()[name]
+
+
+def _check_train_options(options: Mapping[str, Any]) -> None:
+    from fitode.train.trainer import TrainConfig
+    unknown = set(options) - set(TrainConfig.__dataclass_fields__) - {"prior"}
+    if unknown:
+        raise FitodeError(f"unknown training option(s): {', '.join(sorted(unknown))}")
+    if "prior" in options:
+        raise FitodeError("give the prior as prior=(mean, std), not as a training option")
+    for key in ("restarts", "max_steps", "window"):
+        if key in options and (not isinstance(options[key], int) or options[key] < 1):
+            raise FitodeError(f"--{key.replace('_', '-')} must be a positive integer, got {options[key]!r}")
+    if options.get("window", 3) < 3:
+        raise FitodeError("--window must be at least 3 frames")
+    encoder = options.get("encoder")
+    if encoder is not None:
+        from fitode.train.encoders import ENCODERS
+        if encoder not in ENCODERS:
+            raise FitodeError(f"unknown encoder {encoder!r}; choose one of {', '.join(ENCODERS)}")
+    device = str(options.get("device", "cpu"))
+    if device.startswith("cuda"):
+        import torch
+        if not torch.cuda.is_available():
+            raise FitodeError("--device cuda: no CUDA device is available here (torch "
+                              f"{torch.__version__}, built {'with' if torch.version.cuda else 'without'} CUDA); "
+                              "use --device cpu")
+    elif device != "cpu":
+        raise FitodeError(f"unknown device {device!r}; use cpu or cuda")
+
+
+def _resolve_equation(eq, eq_file, system, const, free):
+    given = [x for x in (eq, eq_file, system) if x is not None]
+    if len(given) != 1:
+        raise FitodeError("give the equation once: --eq TEXT, --eq-file PATH or --system NAME")
+    from fitode.eqfile import resolve
+    return resolve(eq=eq, eq_file=eq_file, system=system, const=dict(const or {}), free=tuple(free))
+
+
+def _read(video, **kw):
+    from fitode import video as vid
+    path = Path(str(video))
+    if not path.exists():
+        raise FitodeError(f"{video}: no such file or folder")
+    for key, parser in (("roi", "parse_roi"), ("size", "parse_size"), ("stride", "parse_stride")):
+        if isinstance(kw[key], str):
+            kw[key] = getattr(vid, parser)(kw[key])
+    return vid.read_video(path, **kw)
+
+
+def _check_out_dir(out_dir) -> Path | None:
+    """A given folder must be absent or empty; checked before any work so a clash costs nothing."""
+    if out_dir is None:
+        return None
+    p = Path(out_dir)
+    if p.exists():
+        if not p.is_dir():
+            raise FitodeError(f"--out {p}: exists and is not a folder")
+        if any(p.iterdir()):
+            raise FitodeError(f"--out {p}: folder exists and is not empty; fitode never overwrites a run, "
+                              "choose another folder")
+    return p
+
+
+def _make_out_dir(target: Path | None, stem: str) -> Path:
+    if target is not None:
+        target.mkdir(parents=True, exist_ok=True)
+        if any(target.iterdir()):  # something appeared while the video was read
+            raise FitodeError(f"--out {target}: folder is no longer empty; choose another folder")
+        return target
+    base = Path(RUNS_DIR)
+    base.mkdir(parents=True, exist_ok=True)
+    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in stem) or "video"
+    for n in range(1, 10000):
+        p = base / (f"{safe}-{stamp}" if n == 1 else f"{safe}-{stamp}-{n}")
+        try:
+            p.mkdir()  # atomic: two runs started in the same second get different folders
+            return p
+        except FileExistsError:
+            continue
+    raise FitodeError(f"could not make a new folder under {base}")
+
+
+class _Recorder:
+    """Keeps every step's numbers so an interrupted or failed fit still leaves its history."""
+
+    def __init__(self, names: Iterable[str], chained=None):
+        self.names = list(names)
+        self.runs: dict[int, dict[str, Any]] = {}
+        self.chained = chained
+
+    def __call__(self, info) -> None:
+        run = self.runs.setdefault(info.run, {"index": info.run, "status": "running", "final": {},
+                                              "history": {"step": [], "loss": [], "mse": [], "kl": [],
+                                                          "constants": {n: [] for n in self.names}}})
+        h = run["history"]
+        h["step"].append(info.step)
+        h["loss"].append(info.loss)
+        h["mse"].append(info.mse)
+        h["kl"].append(info.kl)
+        for n in self.names:
+            h["constants"][n].append(info.constants.get(n, math.nan))
+        run["final"], run["loss"], run["steps"] = dict(info.constants), info.loss, info.step
+        if self.chained is not None:
+            self.chained(info)
+
+    def rows(self) -> list[dict[str, Any]]:
+        return [self.runs[k] for k in sorted(self.runs)]
+
+
+def _try_plot(fn, path: Path, *args, plots_done: list[str], **kw) -> str | None:
+    """A plot that cannot be drawn must not lose the numbers: report it as a warning instead."""
+    try:
+        fn(path, *args, **kw)
+    except Exception as exc:  # noqa: BLE001 - matplotlib can fail in many ways; the fit is what matters
+        return f"could not draw {path.name}: {type(exc).__name__}: {exc}"
+    plots_done.append(path.name)
+    return None
+
+
+def _plots_for_result(folder: Path, result, report, calibration, plots_done: list[str]) -> list[str]:
+    from dataclasses import asdict
+
+    from fitode import plots
+    runs = [asdict(r) for r in result.runs]
+    for r in runs:
+        r["selected"] = r["index"] in result.selected
+    estimates = {k: v["value"] for k, v in report["parameters"].items()}
+    units = {k: v.get("unit") for k, v in report["parameters"].items()}
+    latent, rollout, ylabels = result.latent, result.rollout, None
+    if calibration is not None:
+        latent, rollout, ylabels = calibration.latent, calibration.rollout, calibration.ylabels(result.states)
+    warnings = [
+        _try_plot(plots.plot_latent, folder / "latent.png", result.time, latent, rollout, result.train_frames,
+                  result.states, window=int(result.settings.get("window", 0)) or None, ylabels=ylabels,
+                  plots_done=plots_done),
+        _try_plot(plots.plot_params, folder / "params.png", runs, estimates, units=units, plots_done=plots_done),
+        _try_plot(plots.plot_loss, folder / "loss.png", runs, plots_done=plots_done),
+    ]
+    return [w for w in warnings if w]
+
+
+def _write_partial(report: dict, recorder: _Recorder, folder: Path, status: str, why: str,
+                   plots_done: list[str]) -> None:
+    """Whatever a run that did not finish has: the per-step history and the last constants of each run."""
+    from fitode import plots
+    from fitode import report as rep
+    rows = recorder.rows()
+    if rows and status == "incomplete":
+        rows[-1]["status"] = "interrupted"
+    for r in rows:
+        if r["status"] == "running":
+            # the recorder only sees steps; a run that ended before the last one is "ended" (ok or failed
+            # is the trainer's to say), and when every run failed they all did
+            r["status"] = "failed" if status == "failed" else "ended"
+    rep.partial_report(report, rows, status, why)
+    if rows:
+        _try_plot(plots.plot_params, folder / "params.png", rows, {}, plots_done=plots_done)
+        _try_plot(plots.plot_loss, folder / "loss.png", rows, plots_done=plots_done)
+        rep.write_json({"runs": rows}, folder / "history.json")
+        plots_done.append("history.json")
+    report["files"] = sorted(["result.json", *plots_done])
+    rep.write_json(report, folder / "result.json")

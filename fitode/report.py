@@ -1,0 +1,348 @@
+"""What a run says: the lines printed before training, result.json, and the table at the end.
+
+result.json layout (every run of `fitode VIDEO ...` writes one):
+    status            "running" | "complete" | "incomplete" (Ctrl-C) | "failed"
+    error             why it is not complete (absent when complete)
+    fitode_version, created
+    input             file, name, sha256, frames_used, frames_train, frame_shape, fps, fps_source,
+                      stride, stride_reason, dt, duration_s, start, end, roi, size, color, mask
+    equation          text, normal_form, states, learnable, fixed
+    identifiability   per constant: separable, combination, scale, reason (null when unavailable)
+    parameters        NAME: value, std, n_runs, unit, scale, latent_units, calibrated, warnings
+    calibration       null, or the affine maps and the constants it converted (see fitode.calibrate)
+    runs              every restart: index, seed, init, final, loss, steps, status, error, converged,
+                      wall_s, selected (histories are in fit.json, or history.json for a partial run)
+    selected, best    which runs the estimates average, and the one whose latent is plotted
+    settings          every training setting (TrainConfig fields, prior, train_fraction)
+    trajectory        time (s), latent and rollout (T x d) of the best run, train_frames;
+                      physical units when calibrated
+    warnings          every warning the table shows
+    files             what the folder holds
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+from dataclasses import asdict, is_dataclass
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+SPREAD_WARN = 0.05  # restarts "disagree" when their standard deviation exceeds 5% of |value|
+
+
+# ----------------------------------------------------------------------------- identifiability
+def analysis_dict(ode) -> dict[str, Any] | None:
+    """The equation's identifiability analysis as plain data, or None when it cannot be run.
+
+    Returns {"constants": {name: {separable, combination, scale, reason}}, "lines": [...]}.
+    """
+    try:
+        from fitode.eqparse import analyse
+    except ImportError:
+        return None
+    try:
+        raw = analyse(ode)
+    except Exception as exc:  # noqa: BLE001 - the analysis is advice; the fit can go on without it
+        return {"constants": {}, "lines": [f"identifiability analysis failed: {exc}"]}
+    return _normalise_analysis(raw, ode.learnable)
+
+
+def _normalise_analysis(raw, names: Iterable[str]) -> dict[str, Any]:
+    per = getattr(raw, "constants", None)
+    if per is None and isinstance(raw, Mapping):
+        per = raw
+    out: dict[str, dict[str, Any]] = {}
+    for name in names:
+        item = per.get(name) if isinstance(per, Mapping) else None
+        if item is None:
+            continue
+        d = asdict(item) if is_dataclass(item) else (dict(item) if isinstance(item, Mapping) else vars(item))
+        out[name] = {k: _plain(d.get(k)) for k in ("separable", "combination", "scale", "reason")}
+    lines = list(raw.lines()) if hasattr(raw, "lines") else []
+    return {"constants": out, "lines": lines}
+
+
+def _plain(v: Any) -> Any:
+    if v is None or isinstance(v, (bool, int, float, str)):
+        return v
+    if isinstance(v, (list, tuple, set, frozenset)):
+        return [_plain(x) for x in (sorted(v, key=str) if isinstance(v, (set, frozenset)) else v)]
+    return str(v)
+
+
+def scale_of(analysis: Mapping | None, name: str) -> str | None:
+    if not analysis:
+        return None
+    return (analysis.get("constants", {}).get(name) or {}).get("scale")
+
+
+def measurable(analysis: Mapping | None, name: str) -> bool:
+    """False when the analysis says the constant appears only in a combination with another."""
+    if not analysis:
+        return True
+    item = analysis.get("constants", {}).get(name) or {}
+    return item.get("separable", True) is not False
+
+
+def scale_dependent(analysis: Mapping | None, name: str) -> bool:
+    return scale_of(analysis, name) == "dependent"
+
+
+# ----------------------------------------------------------------------------- before training
+def understanding_lines(ode, spec, analysis, clip, n_train: int, settings: Mapping[str, Any]) -> list[str]:
+    """What fitode understood, printed before it spends minutes training."""
+    from fitode import __version__
+    lines = [f"fitode {__version__}"]
+    lines += [f"video      {line}" for line in _clip_lines(clip)]
+    n = int(clip.frames.shape[0])
+    shape = tuple(int(s) for s in clip.frames.shape[1:])
+    lines.append(f"frames     {n} used ({n_train} for training), {shape[1]}x{shape[2]} "
+                 f"{'colour' if shape[0] == 3 else 'gray'}, {(n - 1) * clip.dt:.3g} s")
+    lines.append(f"time step  dt = {clip.stride} / {clip.fps:.6g} fps = {clip.dt:.6g} s (fps {clip.fps_source}; "
+                 f"stride {clip.stride}: {clip.stride_reason})")
+    for i, nf in enumerate(ode.normal_form()):
+        lines.append(f"{'equation' if i == 0 else '':<10} {nf}")
+    units = spec.parameters if spec is not None else {}
+    learn = [f"{n}" + (f" [{units[n].unit}]" if n in units and units[n].unit else "") for n in ode.learnable]
+    lines.append(f"learnable  {', '.join(learn)}")
+    if ode.fixed:
+        lines.append("fixed      " + ", ".join(f"{k} = {v:.6g}" for k, v in ode.fixed.items()))
+    lines.append(f"prior      N({settings['prior'][0]:g}, {settings['prior'][1]:g}^2) on the latent")
+    for line in (analysis or {}).get("lines", []):
+        lines.append(f"analysis   {line}")
+    lines.append(f"training   {settings['restarts']} restarts, up to {settings['max_steps']} steps, window "
+                 f"{settings['window']} frames, {settings['integrator']}, {settings['encoder']} encoder, "
+                 f"{settings['device']}, seed {settings['seed']}")
+    return lines
+
+
+def _clip_lines(clip) -> list[str]:
+    if hasattr(clip, "describe"):
+        try:
+            return list(clip.describe())
+        except Exception:  # noqa: BLE001 - description is cosmetic
+            pass
+    return [f"{getattr(clip, 'path', '?')}"]
+
+
+# ----------------------------------------------------------------------------- result.json
+def base_report(video, clip, ode, spec, analysis, settings: Mapping[str, Any], n_train: int,
+                folder: Path) -> dict[str, Any]:
+    from fitode import __version__
+    n = int(clip.frames.shape[0])
+    units = {k: p.unit for k, p in (spec.parameters.items() if spec is not None else [])}
+    return {
+        "status": "running",
+        "fitode_version": __version__,
+        "created": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
+        "out_dir": str(folder),
+        "input": {
+            "file": str(video),
+            "name": Path(str(video)).name,
+            "sha256": getattr(clip, "sha256", None),
+            "frames_used": n,
+            "frames_train": n_train,
+            "frame_shape": [int(s) for s in clip.frames.shape[1:]],
+            "fps": float(clip.fps),
+            "fps_source": getattr(clip, "fps_source", None),
+            "stride": int(clip.stride),
+            "stride_reason": getattr(clip, "stride_reason", None),
+            "dt": float(clip.dt),
+            "duration_s": (n - 1) * float(clip.dt),
+            **{k: _plain(getattr(clip, k, None)) for k in ("start", "end", "roi", "size", "color", "mask")},
+        },
+        "equation": {
+            "text": ode.text,
+            "normal_form": ode.normal_form(),
+            "states": list(ode.states),
+            "learnable": list(ode.learnable),
+            "fixed": dict(ode.fixed),
+            "units": units,
+        },
+        "identifiability": analysis,
+        "parameters": {},
+        "calibration": None,
+        "runs": [],
+        "selected": [],
+        "best": None,
+        "settings": _plain_settings(settings),
+        "trajectory": None,
+        "warnings": [],
+        "files": [],
+    }
+
+
+def _plain_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in settings.items() if _jsonable(v)}
+
+
+def _jsonable(v: Any) -> bool:
+    try:
+        json.dumps(v)
+        return True
+    except (TypeError, ValueError):
+        return False
+
+
+def complete_report(report: dict[str, Any], result, analysis, calibration) -> None:
+    """Fill the estimates, runs and trajectory of a finished fit (and its calibration) into report."""
+    units = report["equation"].get("units", {})
+    n_runs = len(result.runs)
+    failed = [r.index for r in result.runs if r.status != "ok"]
+    params: dict[str, Any] = {}
+    warnings: list[str] = []
+    for name, est in result.parameters.items():
+        value, std = est.value, est.std
+        conv = calibration.constants.get(name) if calibration is not None else None
+        if conv is not None and conv["converted"]:
+            value, std = conv["after"], conv["std_after"]
+        unit = est.unit or units.get(name)
+        entry = {"value": value, "std": std, "n_runs": est.n_runs, "unit": unit,
+                 "scale": scale_of(analysis, name), "measurable": measurable(analysis, name),
+                 "calibrated": bool(conv and conv["converted"]), "latent_units": False, "warnings": []}
+        if scale_dependent(analysis, name) and not entry["calibrated"]:
+            entry["latent_units"] = True
+            entry["warnings"].append("in latent units: it depends on the latent's arbitrary scale; "
+                                     "give --calibrate with known values of the state for physical units")
+        if not entry["measurable"]:
+            item = analysis["constants"].get(name, {})
+            comb = item.get("combination")
+            entry["warnings"].append("not measurable alone" + (f": appears only in {comb}" if comb else "")
+                                     + (f" ({item['reason']})" if item.get("reason") else ""))
+        if scale_of(analysis, name) == "free-small-amplitude" and not entry["calibrated"]:
+            entry["warnings"].append("scale-free only for small amplitudes: with large swings the latent's "
+                                     "arbitrary scale biases it; calibrate the state to be sure")
+        if est.n_runs > 1 and abs(std) > SPREAD_WARN * abs(value):
+            rel = abs(std) / abs(value) if value else math.inf
+            entry["warnings"].append(f"restarts disagree: spread {_pct(rel)} of the value")
+        params[name] = entry
+        warnings += [f"{name}: {w}" for w in entry["warnings"]]
+    if failed:
+        warnings.append(f"{len(failed)} of {n_runs} restarts failed (runs {', '.join(str(i + 1) for i in failed)})")
+    dropped = [r.index for r in result.runs if r.status == "ok" and r.index not in result.selected]
+    if dropped:
+        warnings.append(f"{len(dropped)} of {n_runs} restarts ended with a loss more than "
+                        f"{result.selection_factor:g}x the best and were left out of the estimate "
+                        f"(runs {', '.join(str(i + 1) for i in dropped)})")
+    not_converged = [r.index for r in result.runs if r.status == "ok" and not r.converged]
+    if not_converged and len(not_converged) == len([r for r in result.runs if r.status == "ok"]):
+        warnings.append("no restart settled before --max-steps; the estimates may still be moving "
+                        "(see params.png; raise --max-steps)")
+    report["parameters"] = params
+    report["runs"] = [_run_entry(asdict(r), r.index in result.selected) for r in result.runs]
+    report["selected"] = list(result.selected)
+    report["best"] = int(result.best)
+    latent, rollout = result.latent, result.rollout
+    if calibration is not None:
+        latent, rollout = calibration.latent, calibration.rollout
+    report["trajectory"] = {
+        "time": [float(t) for t in result.time],
+        "train_frames": int(result.train_frames),
+        "states": list(result.states),
+        "units": "physical" if calibration is not None else "latent",
+        "latent": _finite(latent),
+        "rollout": _finite(rollout),
+    }
+    report["calibration"] = calibration.to_dict() if calibration is not None else None
+    report["warnings"] = warnings + report.get("warnings", [])
+    report["status"] = "complete"
+    report.pop("error", None)
+
+
+def _run_entry(run: dict[str, Any], selected: bool) -> dict[str, Any]:
+    keep = ("index", "seed", "init", "final", "loss", "steps", "status", "error", "converged", "wall_s")
+    out = {k: run.get(k) for k in keep}
+    out["selected"] = selected
+    return out
+
+
+def partial_report(report: dict[str, Any], rows: list[dict[str, Any]], status: str, why: str) -> None:
+    """A fit that did not finish: the last numbers of each run, no estimates."""
+    report["status"] = status
+    report["error"] = why
+    report["runs"] = [{"index": r["index"], "final": r.get("final", {}), "loss": r.get("loss"),
+                       "steps": r.get("steps", 0), "status": r.get("status")} for r in rows]
+    report["parameters"] = {}
+    report["warnings"] = report.get("warnings", []) + [f"run {status}: {why}; no estimates were made"]
+
+
+def write_json(obj: Any, path: Path) -> Path:
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(_finite(obj), indent=1, allow_nan=False))
+    tmp.replace(path)  # a Ctrl-C mid-write never leaves half a result.json
+    return path
+
+
+def _finite(obj: Any) -> Any:
+    """JSON has no NaN or infinity: write them as null. numpy arrays become lists."""
+    if hasattr(obj, "tolist") and not isinstance(obj, (str, bytes)):
+        obj = obj.tolist()
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {str(k): _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
+
+
+# ----------------------------------------------------------------------------- after training
+def run_lines(result) -> list[str]:
+    """One line per restart: how it ended."""
+    lines = []
+    for r in result.runs:
+        mark = "*" if r.index == result.best else ("+" if r.index in result.selected else " ")
+        consts = " ".join(f"{k}={v:.5g}" for k, v in r.final.items())
+        state = "settled" if r.converged else ("failed: " + (r.error or "?") if r.status != "ok" else "step limit")
+        lines.append(f"run {r.index + 1:>2}{mark} {r.steps:>5} steps {r.wall_s:6.1f} s  loss {r.loss:.4g}  "
+                     f"{consts}  ({state})")
+    lines.append("           (* best run, + also averaged into the estimate)")
+    return lines
+
+
+def format_table(report: Mapping[str, Any]) -> str:
+    """The table printed at the end: name, value, spread over restarts, unit, then the warnings."""
+    params = report.get("parameters") or {}
+    out = []
+    if report.get("status") != "complete":
+        out.append(f"no estimates: run {report.get('status')} ({report.get('error', '')})")
+    if params:
+        n_runs = len(report.get("runs", []))
+        n_sel = len(report.get("selected", []))
+        rows = [("constant", "value", "spread", "unit", "")]
+        for name, p in params.items():
+            unit = p.get("unit") or ("latent units" if p.get("latent_units") else "")
+            flag = "!" if p.get("warnings") else ""
+            spread = f"±{_num(p['std'])}" if p.get("n_runs", 1) > 1 else "-"
+            rows.append((name, _num(p["value"]), spread, unit, flag))
+        widths = [max(len(r[i]) for r in rows) for i in range(4)]
+        out.append(f"estimates (mean over {n_sel} of {n_runs} restarts; spread = their standard deviation)")
+        for i, r in enumerate(rows):
+            out.append("  " + "  ".join([r[0].ljust(widths[0]), r[1].rjust(widths[1]), r[2].rjust(widths[2]),
+                                         r[3].ljust(widths[3]), r[4]]).rstrip())
+    cal = report.get("calibration")
+    if cal:
+        out.append("calibration: " + "; ".join(f"{s} = {m['a']:.6g}*latent + {m['b']:.6g}"
+                                               for s, m in cal["maps"].items()))
+    warnings = report.get("warnings") or []
+    for w in warnings:
+        out.append(f"warning: {w}")
+    return "\n".join(out)
+
+
+def _num(v: float | None) -> str:
+    if v is None or not math.isfinite(v):
+        return "nan"
+    if v == 0:
+        return "0"
+    mag = abs(v)
+    if 1e-3 <= mag < 1e5:
+        decimals = max(0, 4 - int(math.floor(math.log10(mag))))
+        return f"{v:.{min(decimals, 7)}f}"
+    return f"{v:.4e}"
+
+
+def _pct(rel: float) -> str:
+    return f"{100 * rel:.0f}%" if rel >= 0.1 else f"{100 * rel:.1f}%"
