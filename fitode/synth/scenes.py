@@ -1,0 +1,537 @@
+"""Realistic scenes modelled on the paper's real dataset (Delfys75): a camera on a tripod
+filming five experiments at 60 fps.
+
+Each frame is drawn in linear RGB (textured seeded background, lit and shaded objects, soft
+shadows, anti-aliased at 4x supersampling), then passed through a camera model: lens
+vignetting, mild optical blur, signal-dependent sensor noise, 8-bit quantisation and a JPEG
+round trip (a lossy codec on every frame). Frames are uint8 RGB (T, H, W, 3).
+
+The dynamics are the physics, not a fit target's approximation:
+- pendulum: theta'' = -g/L sin(theta) - zeta theta' (nonlinear), integrated with the
+  project's RK4 at 20 sub-steps per frame; L = 0.45, 0.9, 1.5 m; zeta = 0.05 /s.
+- torricelli: h' = -k sqrt(h) in metres and seconds, exact: sqrt(h) = sqrt(h0) - k t / 2;
+  a floating ball marks the level; k = 0.0095, 0.0128, 0.0162 m^0.5/s.
+- sliding_block: s'' = a, a = g (sin(alpha) - mu cos(alpha)), exact; alpha = 20, 25, 30 deg,
+  mu = 0.21; the block starts near the top, already released t0 seconds before frame 0.
+- led: b' = -gamma b, exact; the sensor is linear (no gamma curve, nothing saturates), so
+  the pixel values are affine in the LED's brightness; gamma = 2.3, 0.92, 0.46 /s.
+- free_fall: a ball dropped h0 = 0.20 m below a camera looking straight down; its distance
+  h = h0 + g t^2 / 2 and its apparent radius r0 f / h (the dataset's model, f = 1451 px/m
+  at 1920 px wide, scaled with the width here); r0 = 0.0335, 0.06, 0.10 m.
+The ground truth (constants of `equation`, the latent trajectory) is in SynthVideo.truth and
+.latent; physical extras (g, mu, alpha, r0, f, ...) in meta["physical"].
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from fitode.errors import FitodeError
+from fitode.synth import render as R
+from fitode.synth.video import SynthVideo
+
+G = 9.80665
+
+
+@dataclass(frozen=True)
+class SceneInfo:
+    name: str
+    setting: str           # the name of the varied quantity
+    settings: tuple[float, ...]  # the dataset's values
+    unit: str
+    description: str
+    default_duration: float | None  # None: as long as the experiment lasts
+
+
+SCENES: dict[str, SceneInfo] = {
+    "pendulum": SceneInfo("pendulum", "L", (0.45, 0.9, 1.5), "m",
+                          "a pendulum of length L swinging in front of a wall", 4.0),
+    "torricelli": SceneInfo("torricelli", "k", (0.0095, 0.0128, 0.0162), "m^0.5/s",
+                            "a draining tank, a floating ball marking the level", 5.0),
+    "sliding_block": SceneInfo("sliding_block", "alpha", (20.0, 25.0, 30.0), "deg",
+                               "a block sliding down a ramp inclined at alpha (mu = 0.21)", None),
+    "led": SceneInfo("led", "gamma", (2.3, 0.92, 0.46), "1/s",
+                     "an LED whose brightness decays as exp(-gamma t)", 3.0),
+    "free_fall": SceneInfo("free_fall", "r0", (0.0335, 0.06, 0.10), "m",
+                           "a ball of radius r0 falling away from a camera looking down", None),
+}
+
+
+@dataclass
+class _Scene:
+    """What a scene builder hands the common camera loop."""
+
+    background: np.ndarray                 # (H, W, 3) float32 linear RGB
+    draw: Callable[[R.Canvas, int], None]  # paints frame i's moving parts
+    latent: np.ndarray                     # (T, dim)
+    latent_names: tuple[str, ...]
+    equation: str
+    truth: dict[str, float]
+    physical: dict[str, float]
+    state: np.ndarray | None = None
+    state_names: tuple[str, ...] = ()
+    overlay: Callable[[R.Canvas, int], None] | None = None  # painted after draw (glass, ...)
+
+
+def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: float | None = None,
+          fps: float = 60.0, size: tuple[int, int] = (270, 480), noise: float = 1.0,
+          blur: float = 0.7, jpeg_quality: int = 85, ss: int = 4, **params: float) -> SynthVideo:
+    """Render one realistic scene.
+
+    setting: the dataset's varied quantity (L, k, alpha in degrees, gamma, r0 in metres; see
+        SCENES); None: the middle value. Any value in a physically sensible range is accepted.
+    seed: initial conditions (pendulum angle, tank level, ...), textures and sensor noise.
+    duration: seconds (None: the scene's default, for sliding_block and free_fall as long as
+        the motion lasts, which is also the maximum).
+    size: (height, width) in pixels.
+    noise: sensor-noise multiplier (1: a decent camera, 0: none). blur: optical blur sigma
+        in pixels. jpeg_quality: 1..100 (100: no compression).
+    params: scene-specific overrides (pendulum: zeta, theta0_deg; torricelli: h0;
+        sliding_block: mu, t0; led: b0; free_fall: h0, floor).
+    """
+    if name not in SCENES:
+        raise FitodeError(f"unknown scene '{name}': choose one of {', '.join(SCENES)}")
+    info = SCENES[name]
+    if setting is None:
+        setting = info.settings[len(info.settings) // 2]
+    setting = float(setting)
+    h, w = (int(size[0]), int(size[1]))
+    if not (32 <= h <= 4320 and 32 <= w <= 7680):
+        raise FitodeError(f"scene size must be between 32 and 7680 pixels a side, got {w}x{h}")
+    if not (fps > 0 and np.isfinite(fps)):
+        raise FitodeError(f"fps must be positive, got {fps}")
+    if duration is not None and not (duration > 0 and np.isfinite(duration)):
+        raise FitodeError(f"duration must be a positive number of seconds, got {duration}")
+    if not 1 <= int(jpeg_quality) <= 100:
+        raise FitodeError(f"jpeg_quality must be between 1 and 100, got {jpeg_quality}")
+    if noise < 0 or blur < 0:
+        raise FitodeError("noise and blur must not be negative")
+    builder = _BUILDERS[name]
+    allowed = _PARAMS[name]
+    unknown = set(params) - set(allowed)
+    if unknown:
+        raise FitodeError(f"scene '{name}' has no parameter {', '.join(sorted(unknown))} "
+                          f"(it takes {', '.join(allowed) or 'none'})")
+    rng = np.random.default_rng([int(seed), 17])
+    dt = 1.0 / float(fps)
+    sc = builder(setting, rng, duration, dt, h, w, params)
+    n = sc.latent.shape[0]
+    frames = np.empty((n, h, w, 3), np.uint8)
+    vig = R.vignette(h, w, 0.22)[..., None]
+    sensor = _Sensor(np.random.default_rng([int(seed), 29]), (h, w, 3), noise, blur, int(jpeg_quality))
+    for i in range(n):
+        cv = R.Canvas(sc.background.copy(), ss)
+        sc.draw(cv, i)
+        if sc.overlay is not None:
+            sc.overlay(cv, i)
+        cv.image *= vig
+        frames[i] = sensor(cv.image)
+    meta = {
+        "generator": "scene", "name": name, "setting_name": info.setting, "setting": setting,
+        "setting_unit": info.unit, "seed": int(seed), "fps": float(fps), "size": [h, w],
+        "duration": n * dt, "noise": noise, "blur": blur, "jpeg_quality": int(jpeg_quality),
+        "params": {k: float(v) for k, v in params.items()}, "physical": sc.physical,
+        "description": info.description,
+    }
+    return SynthVideo(frames=frames, dt=dt, truth=sc.truth, latent=sc.latent, equation=sc.equation,
+                      latent_names=sc.latent_names, state=sc.state, state_names=sc.state_names,
+                      meta=meta)
+
+
+class _Sensor:
+    """Linear RGB in [0, 1] -> what a camera records: blur, shot + read noise, 8 bits, JPEG.
+
+    Gaussian draws dominate the cost of a frame, so every frame reads its noise from one
+    seeded bank of three frames' worth at a random offset: each frame's noise is i.i.d.
+    normal, and what two frames share is shifted by a random number of pixels."""
+
+    def __init__(self, rng: np.random.Generator, shape: tuple[int, ...], noise: float, blur: float,
+                 quality: int):
+        self.rng, self.shape, self.noise, self.blur, self.quality = rng, shape, noise, blur, quality
+        self.size = int(np.prod(shape))
+        self.bank = rng.standard_normal(3 * self.size, dtype=np.float32) if noise > 0 else None
+
+    def __call__(self, img: np.ndarray) -> np.ndarray:
+        import cv2
+
+        if self.blur > 0:
+            img = cv2.GaussianBlur(img, (0, 0), self.blur)
+        if self.noise > 0:
+            # shot noise grows with the signal (variance ~ signal), read noise does not
+            var = np.clip(img, 0, 1)
+            var *= np.float32(0.0004 * self.noise ** 2)
+            var += np.float32((0.008 * self.noise) ** 2)
+            off = int(self.rng.integers(0, 2 * self.size))
+            img = img + np.sqrt(var) * self.bank[off:off + self.size].reshape(self.shape)
+        u8 = np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        return R.jpeg_roundtrip(u8, self.quality)
+
+
+def _frame_count(duration: float | None, default: float | None, t_max: float, dt: float,
+                 what: str) -> int:
+    """Frames for a requested duration, refusing durations the experiment does not last."""
+    dur = default if duration is None else duration
+    if dur is None:
+        dur = t_max
+    if dur > t_max + 1e-9:
+        raise FitodeError(f"{what} lasts {t_max:.3f} s; ask for a duration of at most that")
+    n = int(np.floor(dur / dt + 1e-9))
+    if dur >= t_max - 1e-9:
+        n = int(np.floor(t_max / dt))  # frame n-1 is at or before t_max
+    if n < 2:
+        raise FitodeError(f"a duration of {dur:g} s at this fps gives fewer than 2 frames")
+    return n
+
+
+# --- backgrounds -------------------------------------------------------------------------
+
+def _wall(rng, h, w, base=(0.78, 0.74, 0.66), light_from=(0.2, 0.0), texture=0.05) -> np.ndarray:
+    """A painted wall: a seeded plaster texture and light falling off from one side."""
+    tex = R.value_noise(rng, h, w, (6, 24, 90), (1.0, 0.5, 0.35))
+    y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+    d = np.hypot(x / w - light_from[0], y / h - light_from[1])
+    light = 1.05 - 0.3 * d
+    img = np.asarray(base, np.float32)[None, None] * (light * (1 + texture * tex))[..., None]
+    return np.clip(img, 0, 1).astype(np.float32)
+
+
+def _wood(rng, h, w, base=(0.55, 0.38, 0.22), along: str = "x") -> np.ndarray:
+    """Wood-like grain: noise stretched along one axis."""
+    if along == "x":
+        g = R.value_noise(rng, h, max(w // 8, 4), (3, 10, 30))
+        g = np.repeat(g, 8, axis=1)[:, :w]
+        if g.shape[1] < w:
+            g = np.pad(g, ((0, 0), (0, w - g.shape[1])), mode="edge")
+    else:
+        g = R.value_noise(rng, max(h // 8, 4), w, (20, 60))
+        g = np.repeat(g, 8, axis=0)[:h]
+        if g.shape[0] < h:
+            g = np.pad(g, ((0, h - g.shape[0]), (0, 0)), mode="edge")
+    grain = 1 + 0.12 * np.sin(6 * g) + 0.05 * R.value_noise(rng, h, w, (40, 120))
+    return np.clip(np.asarray(base, np.float32)[None, None] * grain[..., None], 0, 1).astype(np.float32)
+
+
+def _paste_rows(img: np.ndarray, y0: int, patch: np.ndarray) -> None:
+    img[y0:y0 + patch.shape[0]] = patch[: img.shape[0] - y0]
+
+
+def _rgb(*c: float) -> np.ndarray:
+    return np.asarray(c, np.float32)
+
+
+# --- pendulum ------------------------------------------------------------------------------
+
+PENDULUM_EQUATION = "theta'' = -g/L*sin(theta) - zeta*theta'"
+
+
+def pendulum_system():
+    """The equation of the pendulum scene, g fixed at 9.80665."""
+    from fitode.eqparse import parse
+
+    return parse(PENDULUM_EQUATION)
+
+
+def _pendulum(L, rng, duration, dt, h, w, p) -> _Scene:
+    from fitode.synth.trajectory import simulate_system
+
+    if not 0.05 <= L <= 20:
+        raise FitodeError(f"pendulum length L must be between 0.05 and 20 m, got {L}")
+    info = SCENES["pendulum"]
+    zeta = float(p.get("zeta", 0.05))
+    theta0 = np.deg2rad(float(p.get("theta0_deg", rng.uniform(15.0, 35.0))))
+    omega0 = float(p.get("omega0", 0.0))
+    n = _frame_count(duration, info.default_duration, np.inf, dt, "the pendulum")
+    latent, names, state, snames = simulate_system(pendulum_system(), {"L": L, "zeta": zeta},
+                                                   {"theta": theta0, "theta'": omega0}, n, dt, substeps=20)
+    theta = latent[:, 0]
+    bob_m = 0.03
+    ppm = 0.8 * h / (L + bob_m)
+    px, py = w / 2 + rng.uniform(-0.05, 0.05) * w, 0.1 * h
+    rb = max(bob_m * ppm, 2.5)
+
+    bg = _wall(rng, h, w)
+    cv = R.Canvas(bg, 4)
+    bar_h = max(0.025 * h, 3)
+    cv.paint(R.box(w / 2, py - bar_h, w * 0.45, bar_h / 2, radius=1), _rgb(0.25, 0.25, 0.28),
+             (0.05 * w - 2, py - 1.5 * bar_h, 0.95 * w + 2, py - bar_h / 2))
+    cv.paint(R.box(px, py - bar_h / 2, 0.012 * h + 2, bar_h * 0.9, radius=1), _rgb(0.15, 0.15, 0.16),
+             (px - 0.012 * h - 3, py - 2 * bar_h, px + 0.012 * h + 3, py + bar_h))
+    # the wall's shadow of the bob: light from upper left, the bob 15 cm in front of the wall
+    shadow = (0.03 * ppm, 0.02 * ppm)
+
+    def draw(c: R.Canvas, i: int) -> None:
+        bx, by = px + L * ppm * np.sin(theta[i]), py + L * ppm * np.cos(theta[i])
+        sx, sy = bx + shadow[0], by + shadow[1]
+        c.paint(R.circle(sx, sy, rb), 0.0, (sx - rb - 6, sy - rb - 6, sx + rb + 6, sy + rb + 6),
+                opacity=0.3, soft=4.0)
+        hw = max(0.0025 * ppm, 0.6)
+        c.paint(R.segment(px, py, bx, by, hw), _rgb(0.12, 0.12, 0.12),
+                (min(px, bx) - 2, min(py, by) - 2, max(px, bx) + 2, max(py, by) + 2))
+        c.paint(R.circle(bx, by, rb), R.sphere_shade(bx, by, rb, (0.62, 0.64, 0.7)),
+                (bx - rb, by - rb, bx + rb, by + rb))
+
+    return _Scene(background=cv.image, draw=draw, latent=latent, latent_names=names,
+                  equation=PENDULUM_EQUATION, truth={"L": L, "zeta": zeta},
+                  physical={"g": G, "L": L, "zeta": zeta, "theta0_deg": float(np.rad2deg(theta0)),
+                            "omega0": omega0, "pixels_per_metre": ppm, "substeps": 20},
+                  state=state, state_names=snames)
+
+
+# --- Torricelli ----------------------------------------------------------------------------
+
+def _torricelli(k, rng, duration, dt, h, w, p) -> _Scene:
+    if not 1e-4 <= k <= 1.0:
+        raise FitodeError(f"Torricelli k must be between 1e-4 and 1 m^0.5/s, got {k}")
+    info = SCENES["torricelli"]
+    h0 = float(p.get("h0", rng.uniform(0.20, 0.26)))
+    tank_h, tank_w = 0.30, 0.10
+    if not 0.01 <= h0 <= tank_h - 0.01:
+        raise FitodeError(f"h0 must be between 0.01 and {tank_h - 0.01} m, got {h0}")
+    # stop while a centimetre is left: below that the ball sits on the bottom
+    t_max = 2 * (np.sqrt(h0) - np.sqrt(0.01)) / k
+    n = _frame_count(duration, info.default_duration, t_max, dt, "the tank (down to 1 cm)")
+    t = np.arange(n) * dt
+    level = (np.sqrt(h0) - k * t / 2) ** 2
+    ppm = 0.62 * h / tank_h
+    cx = 0.33 * w
+    y_bot = 0.72 * h
+    x_l, x_r = cx - tank_w / 2 * ppm, cx + tank_w / 2 * ppm
+    y_top = y_bot - tank_h * ppm
+    wall_t = max(0.004 * ppm, 1.5)
+    ball_m = 0.015
+    rb = ball_m * ppm
+    drift = rng.uniform(0, 2 * np.pi)
+
+    bg = _wall(rng, h, w, base=(0.72, 0.76, 0.8), light_from=(0.8, 0.0))
+    table_y = int(round(y_bot + wall_t))
+    _paste_rows(bg, table_y, _wood(rng, h - table_y, w))
+    cv = R.Canvas(bg, 4)
+    # a basin catching the jet
+    cv.paint(R.box(0.78 * w, h - 0.03 * h, 0.12 * w, 0.03 * h + 2, radius=3), _rgb(0.3, 0.32, 0.36),
+             (0.66 * w - 2, h - 0.07 * h, 0.9 * w + 2, h))
+    # what is behind the tank looks slightly darker and greener through the glass
+    cv.paint(R.box(cx, (y_top + y_bot) / 2, (x_r - x_l) / 2, (y_bot - y_top) / 2), _rgb(0.55, 0.62, 0.6),
+             (x_l, y_top, x_r, y_bot), opacity=0.12)
+    water = _rgb(0.22, 0.45, 0.75)
+    glass = _rgb(0.85, 0.9, 0.92)
+
+    def draw(c: R.Canvas, i: int) -> None:
+        ys = y_bot - level[i] * ppm
+        bx = cx + 0.25 * (x_r - x_l) * np.sin(0.3 * t[i] + drift)
+        by = ys - 0.45 * rb
+        c.paint(R.circle(bx, by, rb), R.sphere_shade(bx, by, rb, (0.95, 0.45, 0.1)),
+                (bx - rb, by - rb, bx + rb, by + rb))
+        c.paint(R.box(cx, (ys + y_bot) / 2, (x_r - x_l) / 2, (y_bot - ys) / 2),
+                lambda x, y: water * (1 - 0.25 * np.clip((y - ys) / (tank_h * ppm), 0, 1))[..., None],
+                (x_l, ys, x_r, y_bot), opacity=0.55)
+        c.paint(R.box(cx, ys, (x_r - x_l) / 2, 0.6), _rgb(0.85, 0.92, 1.0), (x_l, ys - 2, x_r, ys + 2),
+                opacity=0.6)
+        # the jet: Torricelli's exit speed sqrt(2 g h), then a free parabola
+        v = np.sqrt(2 * G * max(level[i], 0.0))
+        ox, oy = x_r + wall_t, y_bot - 0.01 * ppm
+        tt = np.linspace(0, 0.25, 24)
+        xs = ox + v * tt * ppm
+        yv = oy + 0.5 * G * tt ** 2 * ppm
+        jr = max(0.0025 * ppm, 0.8)
+        for a in range(len(tt) - 1):
+            if yv[a] > h + 2 or xs[a] > w + 2:
+                break
+            c.paint(R.segment(xs[a], yv[a], xs[a + 1], yv[a + 1], jr), water,
+                    (min(xs[a], xs[a + 1]) - jr, min(yv[a], yv[a + 1]) - jr,
+                     max(xs[a], xs[a + 1]) + jr, max(yv[a], yv[a + 1]) + jr), opacity=0.7)
+
+    def overlay(c: R.Canvas, i: int) -> None:
+        for xw in (x_l - wall_t / 2, x_r + wall_t / 2):
+            c.paint(R.box(xw, (y_top + y_bot) / 2, wall_t / 2, (y_bot - y_top) / 2), glass,
+                    (xw - wall_t, y_top, xw + wall_t, y_bot), opacity=0.7)
+        c.paint(R.box(cx, y_bot + wall_t / 2, (x_r - x_l) / 2 + wall_t, wall_t / 2), glass,
+                (x_l - wall_t, y_bot, x_r + wall_t, y_bot + wall_t), opacity=0.8)
+        # highlight streak on the front glass
+        c.paint(R.box(x_l + 0.2 * (x_r - x_l), (y_top + y_bot) / 2, 1.0, 0.45 * (y_bot - y_top)),
+                _rgb(1, 1, 1), (x_l, y_top, x_r, y_bot), opacity=0.25)
+        c.paint(R.circle(x_r + wall_t, y_bot - 0.01 * ppm, 2.0), _rgb(0.2, 0.2, 0.22),
+                (x_r, y_bot - 0.01 * ppm - 3, x_r + wall_t + 3, y_bot - 0.01 * ppm + 3))
+
+    return _Scene(background=cv.image, draw=draw, overlay=overlay, latent=level[:, None],
+                  latent_names=("h",), equation="h' = -k*sqrt(h)", truth={"k": k},
+                  physical={"k": k, "h0": h0, "tank_height": tank_h, "g": G, "pixels_per_metre": ppm,
+                            "empty_after_s": float(2 * np.sqrt(h0) / k)},
+                  state=level[:, None], state_names=("h",))
+
+
+# --- sliding block -------------------------------------------------------------------------
+
+def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
+    mu = float(p.get("mu", 0.21))
+    alpha = np.deg2rad(alpha_deg)
+    if not 1.0 <= alpha_deg <= 80.0:
+        raise FitodeError(f"the ramp angle must be between 1 and 80 degrees, got {alpha_deg}")
+    a = G * (np.sin(alpha) - mu * np.cos(alpha))
+    if a <= 0.05:
+        raise FitodeError(f"at alpha = {alpha_deg:g} deg and mu = {mu:g} the block does not slide "
+                          f"(a = {a:.3f} m/s^2)")
+    t0 = float(p.get("t0", rng.uniform(0.0, 0.1)))
+    ramp, bl, bh, s0 = 1.0, 0.10, 0.06, 0.02
+    t_max = np.sqrt(2 * (ramp - bl - s0) / a) - t0
+    if t_max <= 2 * dt:
+        raise FitodeError("t0 is too late: the block has already reached the bottom")
+    n = _frame_count(duration, None, t_max, dt, "the slide down the ramp")
+    t = np.arange(n) * dt
+    s = s0 + 0.5 * a * (t + t0) ** 2
+    v = a * (t + t0)
+
+    ppm = min(0.8 * w / (ramp * np.cos(alpha) + 0.15), 0.62 * h / (ramp * np.sin(alpha) + bh))
+    floor_y = 0.86 * h
+    x_bot = 0.5 * w + 0.5 * ramp * np.cos(alpha) * ppm
+    x_top, y_top = x_bot - ramp * np.cos(alpha) * ppm, floor_y - ramp * np.sin(alpha) * ppm
+    d = np.array([np.cos(alpha), np.sin(alpha)])     # down the incline, screen coordinates
+    nrm = np.array([np.sin(alpha), -np.cos(alpha)])  # out of the incline surface
+
+    bg = _wall(rng, h, w, base=(0.8, 0.8, 0.78), light_from=(0.1, 0.0))
+    _paste_rows(bg, int(floor_y), _wood(rng, h - int(floor_y), w, base=(0.42, 0.36, 0.3)))
+    cv = R.Canvas(bg, 4)
+    tri = np.array([[x_top, y_top], [x_bot, floor_y], [x_top, floor_y]])
+    wood = _wood(rng, h, w, base=(0.7, 0.55, 0.35))
+    cv.paint(R.polygon(tri), lambda x, y: wood[np.clip(y.astype(int), 0, h - 1), np.clip(x.astype(int), 0, w - 1)],
+             (x_top, y_top, x_bot, floor_y))
+    edge = 1.2
+    cv.paint(R.segment(x_top, y_top, x_bot, floor_y, edge), _rgb(0.35, 0.26, 0.16),
+             (x_top - 2, y_top - 2, x_bot + 2, floor_y + 2))
+    body = _rgb(0.15, 0.35, 0.7)
+
+    def draw(c: R.Canvas, i: int) -> None:
+        centre = np.array([x_top, y_top]) + d * (s[i] + bl / 2) * ppm + nrm * (bh / 2 * ppm + edge)
+        hw, hh = bl / 2 * ppm, bh / 2 * ppm
+        rad = hw + hh + 2
+        bbox = (centre[0] - rad, centre[1] - rad, centre[0] + rad, centre[1] + rad)
+        sh = centre - nrm * 2.5
+        c.paint(R.box(sh[0], sh[1], hw + 1, hh, alpha), 0.0, bbox, opacity=0.25, soft=3.0)
+
+        def shade(x, y):
+            # light from above: brighter towards the top face
+            up = ((x - centre[0]) * nrm[0] + (y - centre[1]) * nrm[1]) / (hh + 1e-6)
+            return body * (0.85 + 0.25 * np.clip(up, -1, 1))[..., None]
+        c.paint(R.box(centre[0], centre[1], hw, hh, alpha, radius=1.0), shade, bbox)
+
+    return _Scene(background=cv.image, draw=draw, latent=s[:, None], latent_names=("s",),
+                  equation="s'' = a", truth={"a": float(a)},
+                  physical={"a": float(a), "alpha_deg": float(alpha_deg), "mu": mu, "g": G, "t0": t0,
+                            "s0": s0, "ramp_length": ramp, "pixels_per_metre": float(ppm)},
+                  state=np.stack([s, v], axis=1), state_names=("s", "s'"))
+
+
+# --- LED -----------------------------------------------------------------------------------
+
+def _led(gamma, rng, duration, dt, h, w, p) -> _Scene:
+    if not 0.001 <= gamma <= 100:
+        raise FitodeError(f"gamma must be between 0.001 and 100 per second, got {gamma}")
+    info = SCENES["led"]
+    b0 = float(p.get("b0", rng.uniform(0.8, 0.95)))
+    if not 0 < b0 <= 1:
+        raise FitodeError(f"b0 (initial brightness) must be in (0, 1], got {b0}")
+    n = _frame_count(duration, info.default_duration, np.inf, dt, "the LED")
+    t = np.arange(n) * dt
+    b = b0 * np.exp(-gamma * t)
+
+    # a dim lab: a green circuit board under weak ambient light
+    board = R.value_noise(rng, h, w, (8, 30, 100), (1.0, 0.6, 0.4))
+    bg = (_rgb(0.05, 0.12, 0.07)[None, None] * (1 + 0.25 * board)[..., None]).astype(np.float32)
+    cv = R.Canvas(bg, 4)
+    pitch = max(h / 18, 6)
+    for yy in np.arange(pitch / 2, h, pitch):
+        for xx in np.arange(pitch / 2, w, pitch):
+            cv.paint(R.circle(xx, yy, 0.12 * pitch), _rgb(0.02, 0.04, 0.03), (xx - 3, yy - 3, xx + 3, yy + 3))
+    cx, cy = w / 2 + rng.uniform(-0.05, 0.05) * w, h / 2 + rng.uniform(-0.05, 0.05) * h
+    rl = 0.06 * h
+    for sx in (-1, 1):  # the LED's legs and a resistor
+        cv.paint(R.segment(cx + sx * 0.35 * rl, cy + rl, cx + sx * 0.35 * rl, cy + 3.5 * rl, 0.12 * rl),
+                 _rgb(0.26, 0.26, 0.25), (cx - rl, cy, cx + rl, cy + 4 * rl))
+    cv.paint(R.box(cx + 3 * rl, cy + 3.5 * rl, 1.2 * rl, 0.35 * rl, radius=0.3 * rl), _rgb(0.3, 0.24, 0.16),
+             (cx + rl, cy + 3 * rl, cx + 5 * rl, cy + 4 * rl))
+    cv.paint(R.circle(cx, cy, rl), R.sphere_shade(cx, cy, rl, (0.3, 0.04, 0.03), ambient=0.3, specular=0.1),
+             (cx - rl, cy - rl, cx + rl, cy + rl))
+    base = cv.image
+
+    # the LED's light at full brightness: a saturated core, a halo and a broad wash
+    y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+    r2 = ((x + 0.5 - cx) ** 2 + (y + 0.5 - cy) ** 2) / (rl * rl)
+    core = np.clip(1.2 - r2, 0, 1) ** 0.5
+    halo = np.exp(-r2 / 3.0)
+    wash = np.exp(-r2 / 40.0)
+    light = (core[..., None] * _rgb(0.7, 0.45, 0.38) + halo[..., None] * _rgb(0.8, 0.16, 0.1)
+             + wash[..., None] * _rgb(0.2, 0.04, 0.025))
+    # keep every pixel of base + light below 0.95: the sensor stays linear (no clipping)
+    scale = float(np.min((0.95 - base) / np.maximum(light, 1e-6)))
+    light *= scale
+
+    def draw(c: R.Canvas, i: int) -> None:
+        c.image += np.float32(b[i]) * light
+
+    return _Scene(background=base, draw=draw, latent=b[:, None], latent_names=("b",),
+                  equation="b' = -gamma*b", truth={"gamma": gamma},
+                  physical={"gamma": gamma, "b0": b0}, state=b[:, None], state_names=("b",))
+
+
+# --- free fall -----------------------------------------------------------------------------
+
+def _free_fall(r0, rng, duration, dt, h, w, p) -> _Scene:
+    if not 0.005 <= r0 <= 0.3:
+        raise FitodeError(f"the ball radius r0 must be between 0.005 and 0.3 m, got {r0}")
+    h0 = float(p.get("h0", 0.20))
+    floor = float(p.get("floor", 1.5))
+    if not r0 < h0 < floor - r0:
+        raise FitodeError(f"need r0 < h0 < floor - r0 (r0 = {r0}, h0 = {h0}, floor = {floor})")
+    f = 1451.0 * w / 1920.0
+    t_max = np.sqrt(2 * (floor - r0 - h0) / G)
+    n = _frame_count(duration, None, t_max, dt, "the fall to the floor")
+    t = np.arange(n) * dt
+    dist = h0 + 0.5 * G * t ** 2
+    radius = r0 * f / dist
+    ox, oy = rng.uniform(-0.02, 0.02, 2)  # the ball falls a little off the optical axis
+
+    # the floor 'floor' metres below the camera: tiles of 30 cm
+    tile = 0.3 * f / floor
+    y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+    gx, gy = (x + 0.5 - w / 2) / tile, (y + 0.5 - h / 2) / tile
+    grout = np.minimum(np.abs(gx - np.round(gx)), np.abs(gy - np.round(gy))) * tile
+    tone = 1 + 0.08 * R.value_noise(rng, h, w, (5, 20, 80))
+    checker = (np.floor(gx) + np.floor(gy)) % 2
+    bg = _rgb(0.62, 0.6, 0.56)[None, None] * (tone * (1 - 0.06 * checker))[..., None]
+    gl = np.clip(1.5 - grout, 0, 1)[..., None]
+    bg = (bg * (1 - gl) + gl * _rgb(0.35, 0.34, 0.32)).astype(np.float32)
+    bg *= (0.9 + 0.1 * np.exp(-((x - w / 2) ** 2 + (y - h / 2) ** 2) / (0.5 * w) ** 2))[..., None]
+    ball = (0.9, 0.75, 0.1)
+
+    def draw(c: R.Canvas, i: int) -> None:
+        cx, cy = w / 2 + f * ox / dist[i], h / 2 + f * oy / dist[i]
+        r = radius[i]
+        # a seam: the ball spins slowly as it falls
+        ang = 0.8 * t[i]
+
+        def col(xx, yy):
+            shade = R.sphere_shade(cx, cy, r, ball, light=(-0.3, -0.3, 0.9), specular=0.35)(xx, yy)
+            u, v = (xx - cx) / r, (yy - cy) / r
+            seam = np.abs(np.sin(3 * np.arctan2(v, u) + ang) * np.sqrt(np.clip(1 - u * u - v * v, 0, 1))
+                          - 0.4 * (u * np.cos(ang) + v * np.sin(ang)))
+            return shade * (1 - 0.55 * np.clip(1 - seam / 0.06, 0, 1))[..., None]
+        c.paint(R.circle(cx, cy, r), col, (cx - r, cy - r, cx + r, cy + r))
+
+    return _Scene(background=bg, draw=draw, latent=dist[:, None], latent_names=("h",),
+                  equation="h'' = g", truth={"g": G},
+                  physical={"g": G, "r0": r0, "h0": h0, "floor": floor, "f_px": f,
+                            "radius_px_first": float(radius[0]), "radius_px_last": float(radius[-1])},
+                  state=np.stack([dist, G * t], axis=1), state_names=("h", "h'"))
+
+
+_BUILDERS = {"pendulum": _pendulum, "torricelli": _torricelli, "sliding_block": _sliding_block,
+             "led": _led, "free_fall": _free_fall}
+_PARAMS = {"pendulum": ("zeta", "theta0_deg", "omega0"), "torricelli": ("h0",),
+           "sliding_block": ("mu", "t0"), "led": ("b0",), "free_fall": ("h0", "floor")}
+
+
+def apparent_radius(v: SynthVideo) -> np.ndarray:
+    """The free-fall ball's true apparent radius in pixels at each frame, r0 f / h."""
+    ph = v.meta["physical"]
+    return ph["r0"] * ph["f_px"] / v.latent[:, 0]
