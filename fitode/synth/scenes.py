@@ -81,7 +81,8 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
     """Render one realistic scene.
 
     setting: the dataset's varied quantity (L, k, alpha in degrees, gamma, r0 in metres; see
-        SCENES); None: the middle value. Any value in a physically sensible range is accepted.
+        SCENES), positionally or by its name (scene("pendulum", L=0.9)); None: the middle
+        value. Any value in a physically sensible range is accepted.
     seed: initial conditions (pendulum angle, tank level, ...), textures and sensor noise.
     duration: seconds (None: the scene's default, for sliding_block and free_fall as long as
         the motion lasts, which is also the maximum).
@@ -94,6 +95,10 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
     if name not in SCENES:
         raise FitodeError(f"unknown scene '{name}': choose one of {', '.join(SCENES)}")
     info = SCENES[name]
+    if info.setting in params:  # scene("pendulum", L=0.9) reads as well as scene("pendulum", 0.9)
+        if setting is not None:
+            raise FitodeError(f"give the {info.setting} of scene '{name}' once")
+        setting = params.pop(info.setting)
     if setting is None:
         setting = info.settings[len(info.settings) // 2]
     setting = float(setting)
@@ -246,7 +251,7 @@ def _pendulum(L, rng, duration, dt, h, w, p) -> _Scene:
     latent, names, state, snames = simulate_system(pendulum_system(), {"L": L, "zeta": zeta},
                                                    {"theta": theta0, "theta'": omega0}, n, dt, substeps=20)
     theta = latent[:, 0]
-    bob_m = 0.03
+    bob_m = 0.035
     ppm = 0.8 * h / (L + bob_m)
     px, py = w / 2 + rng.uniform(-0.05, 0.05) * w, 0.1 * h
     rb = max(bob_m * ppm, 2.5)
