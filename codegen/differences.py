@@ -64,7 +64,7 @@ def init_scheme(max_order: int, mode: str = "difference", context: int | None = 
             context = wanted if wanted % 2 else wanted + 1
     if context < max_order:
         raise ParameterError(f"{context} context frame(s) cannot give the {max_order - 1} derivative(s) "
-                             f"a order-{max_order} equation needs; use at least {max_order}")
+                             f"an order-{max_order} equation needs; use at least {max_order}")
     anchor = context - 1 if mode == "backward" else (context - 1) // 2
     offsets = [j - anchor for j in range(context)]
     table = finite_diff_weights(max_order - 1, offsets, 0)
@@ -84,12 +84,13 @@ def describe_init(layout, mode: str, context: int | None = None) -> str:
     scheme = init_scheme(layout.max_order, mode, context)
     z = sympy.IndexedBase("z")
     dt = sympy.Symbol("dt")
-    lines = [f"Initial state (init={mode!r}): {scheme.context} context frame(s) z[0..{scheme.context - 1}], "
-             f"rollout from frame {scheme.anchor}:"]
+    lines = [f"Initial state (init={mode!r}): each latent z from {scheme.context} context frame(s) "
+             f"z[0..{scheme.context - 1}]; the rollout starts at frame {scheme.anchor}:"]
+    width = len("z" + "'" * (layout.max_order - 1))
     for k in range(layout.max_order):
         expr = sum(w * z[j] for j, w in enumerate(scheme.exact[k])) / dt ** k
-        err = "exact" if k == 0 else f"error O(dt^{scheme.error_order[k]})"
-        name = "value" if k == 0 else "d" * 1 + ("" if k == 1 else f"^{k}") + "/dt" + ("" if k == 1 else f"^{k}")
-        extra = "  (then learnable per window)" if mode == "learnable" and k else ""
-        lines.append(f"  {name} = {sympy.sstr(sympy.together(expr))}  {err}{extra}")
+        order = scheme.error_order[k]
+        err = "exact" if k == 0 else ("error O(dt)" if order == 1 else f"error O(dt^{order})")
+        extra = ", then learned per window" if mode == "learnable" and k else ""
+        lines.append(f"  {'z' + chr(39) * k:<{width}} = {sympy.sstr(sympy.together(expr))}   ({err}{extra})")
     return "\n".join(lines)

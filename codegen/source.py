@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import sympy
+import torch
+from sympy.printing.codeprinter import PrintMethodNotImplementedError
 from sympy.printing.pytorch import TorchPrinter
 
 from fitode.eqparse import OdeSystem
@@ -184,12 +186,31 @@ def compile_system(system: OdeSystem) -> VectorField:
     if cached is not None:
         return cached
     layout = StateLayout.from_system(system)
+    try:
+        body = _body(layout)
+    except PrintMethodNotImplementedError as exc:
+        raise CodegenError(f"no torch translation: {str(exc).splitlines()[0]}") from None
     source = "\n".join(_header(layout, system.normal_form(), system.fixed)
-                       + ["import math", "import torch", "", ""]) + _body(layout) + "\n"
+                       + ["import math", "import torch", "", "", ""]) + body + "\n"
     fn, filename = _exec(source, key, "vector_field")
+    _smoke_test(fn, layout)
     vf = VectorField(layout, source, fn, filename)
     _CACHE[key] = vf
     return vf
+
+
+def _smoke_test(fn: Callable, layout: StateLayout) -> None:
+    """Run the compiled function once: a printer mapping to a torch function that does not exist
+    (sympy prints gamma as torch.special.gamma) must fail here, not in the middle of training."""
+    y = torch.full((1, layout.n_slots), 0.5, dtype=torch.float64)
+    consts = [torch.tensor(0.5, dtype=torch.float64)] * len(layout.constants)
+    try:
+        with torch.no_grad():
+            out = fn(y, *consts)
+    except Exception as exc:  # noqa: BLE001 - any failure means the generated code is unusable
+        raise CodegenError(f"the generated torch code does not run: {type(exc).__name__}: {exc}") from None
+    if out.shape != y.shape:
+        raise CodegenError(f"the generated torch code returns shape {tuple(out.shape)}, not {tuple(y.shape)}")
 
 
 def _exec(source: str, key: str, name: str):

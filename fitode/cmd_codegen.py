@@ -1,0 +1,85 @@
+"""`fitode codegen`: print the torch code fitode generates for an equation.
+
+    fitode codegen --eq "theta'' = -g/L*sin(theta) - zeta*theta'"
+    fitode codegen --system pendulum --integrator symplectic --init backward
+
+The printed module is exactly the function the physics block compiles (the vector field of the
+equation's first-order form), preceded by comments on the integrator's step and on how the
+initial state is built from a window's first frames.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+
+from fitode.errors import FitodeError
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    eq = p.add_argument_group("equation (exactly one)")
+    ex = eq.add_mutually_exclusive_group(required=True)
+    ex.add_argument("--eq", metavar="TEXT", help="the equation, e.g. \"x'' = -k*x - c*x'\"")
+    ex.add_argument("--system", metavar="NAME", help="a shipped equation file by name")
+    ex.add_argument("--eq-file", metavar="PATH", help="an equation file (TOML)")
+    eq.add_argument("--const", metavar="NAME=VALUE", action="append", default=[],
+                    help="fix a constant to a value (repeatable)")
+    eq.add_argument("--free", metavar="NAME", action="append", default=[],
+                    help="learn a known constant such as g instead of fixing it (repeatable)")
+    gen = p.add_argument_group("what to describe")
+    gen.add_argument("--integrator", default="rk4", choices=["rk4", "symplectic", "euler", "paper"],
+                     help="integrator whose step is described (default rk4; paper = symplectic)")
+    gen.add_argument("--substeps", type=_positive_int, default=1, metavar="N", help="sub-steps per frame (default 1)")
+    gen.add_argument("--init", default="difference", choices=["difference", "backward", "learnable"],
+                     help="how the initial state is built from the first frames (default difference)")
+    gen.add_argument("--context", type=_positive_int, metavar="N",
+                     help="frames used for the initial state (default: by --init)")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
+    return v
+
+
+def _assignments(items: list[str]) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if not sep or not name.strip() or not math.isfinite(number):
+            raise FitodeError(f"--const {item!r}: expected NAME=VALUE with a finite number")
+        out[name.strip()] = number
+    return out
+
+
+def resolve_system(args: argparse.Namespace):
+    """The OdeSystem named by --eq / --system / --eq-file (with --const / --free)."""
+    const = _assignments(args.const)
+    try:
+        from fitode.eqfile import resolve
+    except ImportError:
+        resolve = None
+    if resolve is not None:
+        system, _spec = resolve(eq=args.eq, eq_file=args.eq_file, system=args.system, const=const,
+                                free=tuple(args.free))
+        return system
+    if args.eq is None:
+        raise FitodeError("equation files are not available in this installation; use --eq TEXT")
+    from fitode.eqparse import parse
+    return parse(args.eq, fix=const, free=args.free)
+
+
+def run(args: argparse.Namespace) -> int:
+    from fitode.codegen import generate_source
+
+    system = resolve_system(args)
+    print(generate_source(system, integrator=args.integrator, substeps=args.substeps, init=args.init,
+                          context=args.context), end="")
+    return 0
