@@ -1,0 +1,203 @@
+"""The batch's tables: one row per video (summary) and one per setting (aggregate).
+
+summary.csv columns: name, setting, video, status, error, wall_s, reused, folder, then per
+constant NAME, NAME.std (spread over restarts), NAME.true and NAME.rel_error where a true
+value is given. aggregate.csv: setting, jobs, complete, failed, then per constant NAME.mean,
+NAME.std (sample standard deviation over the setting's complete videos), NAME.n, NAME.true
+and NAME.rel_error (of the mean), as the paper's tables report them.
+
+Every file is written to a temporary name and renamed over the old one, so an interrupted
+batch never leaves a half-written summary.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Iterable
+
+STATUSES = ("complete", "incomplete", "failed", "pending")
+
+
+@dataclass
+class SummaryRow:
+    name: str
+    setting: str
+    video: str
+    status: str = "pending"
+    error: str | None = None
+    wall_s: float | None = None
+    reused: bool = False
+    folder: str = ""
+    parameters: dict[str, dict[str, float | None]] = field(default_factory=dict)
+    truth: dict[str, float] = field(default_factory=dict)
+    details: dict[str, Any] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    def estimate(self, name: str) -> float | None:
+        return (self.parameters.get(name) or {}).get("value")
+
+    def rel_error(self, name: str) -> float | None:
+        return rel_error(self.estimate(name), self.truth.get(name))
+
+
+def rel_error(value: float | None, true: float | None) -> float | None:
+    """(estimate - truth) / |truth|, signed; None where either is missing or the truth is 0."""
+    if value is None or true is None or true == 0:
+        return None
+    return (value - true) / abs(true)
+
+
+def parameter_names(rows: Iterable[SummaryRow]) -> list[str]:
+    names: dict[str, None] = {}
+    for r in rows:
+        names.update(dict.fromkeys(r.parameters))
+        names.update(dict.fromkeys(r.truth))
+    return list(names)
+
+
+def counts(rows: Iterable[SummaryRow]) -> dict[str, int]:
+    c = {s: 0 for s in STATUSES}
+    for r in rows:
+        c[r.status] = c.get(r.status, 0) + 1
+    return c
+
+
+def summary_table(rows: list[SummaryRow]) -> tuple[list[str], list[list[Any]]]:
+    names = parameter_names(rows)
+    has_truth = {n for r in rows for n in r.truth}
+    header = ["name", "setting", "video", "status", "error", "wall_s", "reused", "folder"]
+    for n in names:
+        header += [n, f"{n}.std"] + ([f"{n}.true", f"{n}.rel_error"] if n in has_truth else [])
+    table = []
+    for r in rows:
+        line: list[Any] = [r.name, r.setting, r.video, r.status, r.error or "",
+                           _round(r.wall_s, 3), r.reused, r.folder]
+        for n in names:
+            p = r.parameters.get(n) or {}
+            line += [p.get("value"), p.get("std")]
+            if n in has_truth:
+                line += [r.truth.get(n), r.rel_error(n)]
+        table.append(line)
+    return header, table
+
+
+def aggregate(rows: list[SummaryRow]) -> list[dict[str, Any]]:
+    """Mean and spread over the videos of each setting (complete jobs only), in manifest order."""
+    settings = list(dict.fromkeys(r.setting for r in rows))
+    out = []
+    for s in settings:
+        group = [r for r in rows if r.setting == s]
+        ok = [r for r in group if r.status == "complete"]
+        entry: dict[str, Any] = {"setting": s, "jobs": len(group), "complete": len(ok),
+                                 "failed": sum(r.status == "failed" for r in group), "parameters": {}}
+        for n in parameter_names(group):
+            vals = [v for v in (r.estimate(n) for r in ok) if v is not None]
+            mean = sum(vals) / len(vals) if vals else None
+            std = (math.sqrt(sum((v - mean) ** 2 for v in vals) / (len(vals) - 1)) if len(vals) > 1
+                   else (0.0 if vals else None))
+            truths = {r.truth[n] for r in group if n in r.truth}
+            true = truths.pop() if len(truths) == 1 else None
+            entry["parameters"][n] = {"mean": mean, "std": std, "n": len(vals), "true": true,
+                                      "rel_error": rel_error(mean, true)}
+        out.append(entry)
+    return out
+
+
+def aggregate_table(agg: list[dict[str, Any]]) -> tuple[list[str], list[list[Any]]]:
+    names: dict[str, None] = {}
+    for e in agg:
+        names.update(dict.fromkeys(e["parameters"]))
+    header = ["setting", "jobs", "complete", "failed"]
+    for n in names:
+        header += [f"{n}.mean", f"{n}.std", f"{n}.n", f"{n}.true", f"{n}.rel_error"]
+    table = []
+    for e in agg:
+        line: list[Any] = [e["setting"], e["jobs"], e["complete"], e["failed"]]
+        for n in names:
+            p = e["parameters"].get(n) or {}
+            line += [p.get("mean"), p.get("std"), p.get("n"), p.get("true"), p.get("rel_error")]
+        table.append(line)
+    return header, table
+
+
+def write_summary(out: Path, rows: list[SummaryRow], meta: dict[str, Any]) -> None:
+    """summary.csv, summary.json, aggregate.csv and aggregate.json, each replaced atomically."""
+    agg = aggregate(rows)
+    header, table = summary_table(rows)
+    _atomic(out / "summary.csv", _csv(header, table))
+    payload = {**meta, "counts": counts(rows), "jobs": [_row_json(r) for r in rows], "aggregate": agg}
+    _atomic(out / "summary.json", json.dumps(_finite(payload), indent=1))
+    header, table = aggregate_table(agg)
+    _atomic(out / "aggregate.csv", _csv(header, table))
+    _atomic(out / "aggregate.json", json.dumps(_finite({"manifest": meta.get("manifest"), "settings": agg}), indent=1))
+
+
+def format_aggregate(agg: list[dict[str, Any]]) -> str:
+    """The per-setting table for the terminal: mean ± std over videos, and the error of the mean."""
+    names: dict[str, None] = {}
+    for e in agg:
+        names.update(dict.fromkeys(e["parameters"]))
+    header = ["setting", "videos"] + list(names)
+    lines = []
+    for e in agg:
+        cells = [e["setting"], f"{e['complete']}/{e['jobs']}"]
+        for n in names:
+            p = e["parameters"].get(n) or {}
+            if p.get("mean") is None:
+                cells.append("-")
+                continue
+            cell = f"{p['mean']:.4g} ± {p['std']:.2g}"
+            if p.get("rel_error") is not None:
+                cell += f" ({p['rel_error'] * 100:+.1f}% vs {p['true']:g})"
+            cells.append(cell)
+        lines.append(cells)
+    widths = [max(len(str(x)) for x in col) for col in zip(header, *lines)]
+    fmt = lambda cells: "  ".join(str(c).ljust(w) for c, w in zip(cells, widths)).rstrip()  # noqa: E731
+    return "\n".join([fmt(header)] + [fmt(c) for c in lines])
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    _atomic(path, text)
+
+
+def _row_json(r: SummaryRow) -> dict[str, Any]:
+    d = asdict(r)
+    d["rel_error"] = {n: r.rel_error(n) for n in r.truth}
+    return d
+
+
+def _csv(header: list[str], table: list[list[Any]]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    for line in table:
+        w.writerow(["" if v is None else (repr(v) if isinstance(v, float) else v) for v in line])
+    return buf.getvalue()
+
+
+def _atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "w", encoding="utf-8") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def _round(v: float | None, digits: int) -> float | None:
+    return None if v is None else round(v, digits)
+
+
+def _finite(obj: Any) -> Any:
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj

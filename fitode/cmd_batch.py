@@ -1,0 +1,86 @@
+"""`fitode batch MANIFEST`: fit every video a manifest lists, resumably, locally or on Ray.
+
+Exit status: 0 when every job is complete, 1 when some failed or stopped early (the summary
+says which and why), 2 for a bad manifest or flag, 130 when interrupted.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from fitode.errors import FitodeError
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("manifest", metavar="MANIFEST", help="a .csv or .toml file listing the videos (see the README)")
+    p.add_argument("--out", metavar="DIR", help="the batch's folder (default MANIFEST-STEM-results beside the "
+                   "manifest); re-running with the same folder resumes")
+    ex = p.add_argument_group("where jobs run")
+    ex.add_argument("--executor", choices=["local", "ray"], default="local",
+                    help="local: a process pool on this machine (default); ray: a Ray cluster")
+    ex.add_argument("--workers", type=_positive_int, metavar="N",
+                    help="jobs at once (default: the usable CPU cores; on Ray: the cluster's CPUs)")
+    ex.add_argument("--address", metavar="ADDR", help="Ray cluster to join, e.g. ray://head:10001 or auto "
+                    "(default: start a private local Ray instance)")
+    rs = p.add_argument_group("resuming")
+    rs.add_argument("--force", action="store_true", help="run every job again, even complete ones")
+    rs.add_argument("--skip-failed", action="store_true",
+                    help="keep jobs that failed before (same settings) as failed instead of retrying them")
+    rs.add_argument("--dry-run", action="store_true", help="validate the manifest, say what would run, run nothing")
+
+    d = p.add_argument_group("defaults for what the manifest leaves unset")
+    eq = d.add_mutually_exclusive_group()
+    eq.add_argument("--eq", metavar="TEXT", help="the equation of every row that gives none")
+    eq.add_argument("--eq-file", metavar="PATH", help="an equation file (TOML)")
+    eq.add_argument("--system", metavar="NAME", help="a shipped equation file by name")
+    d.add_argument("--fps", type=float, metavar="F", help="real frame rate")
+    d.add_argument("--stride", metavar="K|auto", help="frame stride (default auto)")
+    d.add_argument("--restarts", type=_positive_int, metavar="N", help="restarts per video (default 3)")
+    d.add_argument("--max-steps", type=_positive_int, metavar="N", help="step limit per restart (default 2000)")
+    d.add_argument("--min-steps", type=int, metavar="N", help="steps before early stopping may stop a restart")
+    d.add_argument("--window", type=_positive_int, metavar="N", help="frames per training window (default 20)")
+    d.add_argument("--integrator", choices=["rk4", "euler", "symplectic"], help="ODE integrator (default rk4)")
+    d.add_argument("--encoder", choices=["mlp", "cnn"], help="frame encoder (default mlp)")
+    d.add_argument("--seed", type=int, metavar="N", help="random seed of every job (default 0)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or chatter; only errors")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
+    return v
+
+
+def defaults_from_args(args: argparse.Namespace) -> dict:
+    keys = ("eq", "eq_file", "system", "fps", "stride", "restarts", "max_steps", "min_steps", "window",
+            "integrator", "encoder", "seed")
+    return {k: getattr(args, k) for k in keys if getattr(args, k, None) is not None}
+
+
+def run(args: argparse.Namespace) -> int:
+    from fitode.batch import format_aggregate, run_batch
+
+    say = (lambda _line: None) if args.quiet else (lambda line: print(line, flush=True))
+    if args.address and args.executor != "ray":
+        raise FitodeError("--address is for --executor ray")
+    result = run_batch(args.manifest, args.out, executor=args.executor, workers=args.workers,
+                       address=args.address, force=args.force, retry_failed=not args.skip_failed,
+                       defaults=defaults_from_args(args), progress=not args.quiet and sys.stderr.isatty(),
+                       log=say, dry_run=args.dry_run)
+    if args.dry_run:
+        return 0
+    c = result.counts
+    say(format_aggregate(result.aggregate))
+    bad = [r for r in result.rows if r.status != "complete"]
+    for r in bad[:10]:
+        print(f"{r.status}: {r.name}: {r.error or 'not run'}", file=sys.stderr)
+    if len(bad) > 10:
+        print(f"... and {len(bad) - 10} more (see summary.csv)", file=sys.stderr)
+    say(f"{c['complete']} complete, {c['failed']} failed, {c['incomplete']} incomplete "
+        f"({len(result.ran)} run now, {len(result.reused)} reused) in {result.wall_s:.1f} s; "
+        f"summary: {result.out_dir / 'summary.csv'}")
+    return 0 if result.ok else 1
