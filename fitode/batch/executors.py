@@ -15,6 +15,7 @@ import multiprocessing as mp
 import os
 import signal
 from collections import deque
+from contextlib import contextmanager
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from multiprocessing.connection import wait as wait_ready
@@ -221,9 +222,9 @@ class RayExecutor:
             try:
                 if self.address:
                     ray.init(address=self.address, **kwargs)
-                else:  # loopback only: a private instance must not listen on the network
-                    ray.init(num_cpus=self.requested or available_cpus(), include_dashboard=False,
-                             _node_ip_address="127.0.0.1", **kwargs)
+                else:
+                    with _loopback_only():
+                        ray.init(num_cpus=self.requested or available_cpus(), include_dashboard=False, **kwargs)
             except Exception as exc:
                 raise FitodeError(one_line(f"could not start or reach Ray: {exc}")) from None
             self._owns = True
@@ -268,6 +269,36 @@ class RayExecutor:
             raise
         finally:
             self.stop()
+
+
+@contextmanager
+def _loopback_only():
+    """A private Ray instance must not listen on the network.
+
+    Ray resolves even `_node_ip_address="127.0.0.1"` to the machine's public address and binds
+    its servers there. Its single-machine mode (the one it uses on macOS and Windows) takes the
+    loopback address instead, and its servers then listen on 127.0.0.1 only. The processes ray.init
+    starts inherit the variable; it is restored afterwards.
+    """
+    key = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+    old = os.environ.get(key)
+    os.environ[key] = "0"
+    constants = None
+    try:
+        from ray._private import ray_constants as constants
+        saved = constants.ENABLE_RAY_CLUSTER
+        constants.ENABLE_RAY_CLUSTER = False  # read at import time: ray may already be imported
+    except (ImportError, AttributeError):
+        constants = None
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = old
+        if constants is not None:
+            constants.ENABLE_RAY_CLUSTER = saved
 
 
 def _ray_main(task: Task) -> JobOutcome:

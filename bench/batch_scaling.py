@@ -1,0 +1,86 @@
+"""Wall time of `fitode batch` on 15 small generated videos, local executor at 1 and 2 workers.
+
+    python bench/batch_scaling.py [--workers 1,2] [--videos 15] [--steps 300] [--restarts 2]
+
+Videos: intensity decay I' = -gamma*I rendered by fitode.synth (the paper's intensity mode,
+24x24 pixels, 60 frames at 10 fps, a little noise), three settings of gamma (0.3, 0.6, 0.9)
+with five videos each. Every worker count runs the whole batch from scratch into its own
+folder (pool start-up included). Prints a table and writes bench/out/batch_scaling.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from fitode.batch import available_cpus, format_aggregate, run_batch
+from fitode.synth import render_equation, write_video
+
+EQ = "I' = -gamma*I"
+SETTINGS = {"gamma-0.3": 0.3, "gamma-0.6": 0.6, "gamma-0.9": 0.9}
+
+
+def make_videos(folder: Path, n_videos: int) -> Path:
+    rows = ["video,setting,true.gamma"]
+    names = list(SETTINGS)
+    for i in range(n_videos):
+        setting = names[i % len(names)]
+        gamma = SETTINGS[setting]
+        v = render_equation(EQ, constants={"gamma": gamma}, y0={"I": 1.0}, n_frames=60, dt=0.1,
+                            mode="intensity", size=24, seed=i, noise=0.02)
+        path = write_video(v, folder / f"{setting}-{i:02d}.mp4")
+        rows.append(f"{path.name},{setting},{gamma}")
+    manifest = folder / "videos.csv"
+    manifest.write_text("\n".join(rows) + "\n")
+    return manifest
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--workers", default="1,2", help="comma-separated worker counts (default 1,2)")
+    ap.add_argument("--videos", type=int, default=15)
+    ap.add_argument("--steps", type=int, default=300, help="max steps per restart (default 300)")
+    ap.add_argument("--restarts", type=int, default=2)
+    ap.add_argument("--out", default=str(Path(__file__).parent / "out"))
+    args = ap.parse_args(argv)
+    counts = [int(w) for w in args.workers.split(",")]
+    defaults = {"eq": EQ, "fps": 10, "stride": 1, "restarts": args.restarts, "max_steps": args.steps,
+                "min_steps": min(200, args.steps), "window": 10, "seed": 0}
+    results = []
+    with tempfile.TemporaryDirectory(prefix="fitode-batch-bench-") as tmp:
+        manifest = make_videos(Path(tmp), args.videos)
+        for w in counts:
+            t0 = time.perf_counter()
+            res = run_batch(manifest, Path(tmp) / f"out-{w}", workers=w, defaults=defaults, log=None,
+                            progress=sys.stderr.isatty())
+            wall = time.perf_counter() - t0
+            job_walls = [r.wall_s for r in res.rows if r.wall_s]
+            results.append({"workers": w, "wall_s": round(wall, 2), "complete": res.counts["complete"],
+                            "failed": res.counts["failed"], "job_wall_mean_s": round(sum(job_walls) / len(job_walls), 2),
+                            "job_wall_sum_s": round(sum(job_walls), 2), "aggregate": res.aggregate})
+            print(f"workers={w}: {wall:.1f} s", flush=True)
+            print(format_aggregate(res.aggregate), flush=True)
+    base = results[0]["wall_s"]
+    print()
+    print(f"{args.videos} videos, {args.restarts} restarts x {args.steps} steps each; {available_cpus()} CPUs")
+    print(f"{'workers':>7}  {'wall s':>7}  {'speed-up':>8}  {'jobs/min':>8}  {'mean job s':>10}  complete")
+    for r in results:
+        print(f"{r['workers']:>7}  {r['wall_s']:>7.1f}  {base / r['wall_s']:>8.2f}  "
+              f"{60 * args.videos / r['wall_s']:>8.1f}  {r['job_wall_mean_s']:>10.2f}  {r['complete']}/{args.videos}")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    record = {"bench": "batch_scaling", "videos": args.videos, "restarts": args.restarts, "max_steps": args.steps,
+              "cpus": available_cpus(), "python": platform.python_version(), "machine": platform.machine(),
+              "load_avg_1min": os.getloadavg()[0], "results": results}
+    (out / "batch_scaling.json").write_text(json.dumps(record, indent=1))
+    print(f"wrote {out / 'batch_scaling.json'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,142 @@
+"""fitode batch end to end: the real single-video pipeline on tiny generated videos, locally and on Ray.
+
+Each job is an intensity decay I' = -gamma*I (a bright square fading on a dark background,
+16x16 pixels, 40 frames), fitted with one restart of 60 steps: seconds per job. These tests
+check the batch's bookkeeping, not the estimates' accuracy (bench/ measures that).
+"""
+from __future__ import annotations
+
+import csv
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+cv2 = pytest.importorskip("cv2")
+
+from fitode.cli import main  # noqa: E402
+
+EQ = "I' = -gamma*I"
+GAMMAS = {"a": 0.4, "b": 0.6, "c": 0.9}
+SETTING = {"a": "slow", "b": "slow", "c": "fast"}
+TINY = "--restarts 1 --max-steps 60 --window 8 --seed 3".split()
+
+
+def write_decay_video(path: Path, gamma: float, n: int = 40, fps: float = 10.0, size: int = 16) -> Path:
+    """A square whose brightness is exp(-gamma t), written as mp4 with OpenCV."""
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (size, size))
+    assert writer.isOpened()
+    rng = np.random.default_rng(int(gamma * 100))
+    for k in range(n):
+        img = np.full((size, size), 20.0) + rng.normal(0, 1.0, (size, size))
+        img[4:12, 4:12] = 40 + 200 * np.exp(-gamma * k / fps)
+        writer.write(cv2.cvtColor(np.clip(img, 0, 255).astype(np.uint8), cv2.COLOR_GRAY2BGR))
+    writer.release()
+    return path
+
+
+def write_manifest(folder: Path, names: list[str], file: str) -> Path:
+    rows = ["video,setting,eq,fps,stride,size,true.gamma"]
+    rows += [f"{n}.mp4,{SETTING.get(n, 'broken')},{EQ},10,1,16x16,{GAMMAS.get(n, 1.0)}" for n in names]
+    path = folder / file
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def videos(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("batch-videos")
+    for name, gamma in GAMMAS.items():
+        write_decay_video(folder / f"{name}.mp4", gamma)
+    return folder
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_local_batch_matches_each_result_and_reruns_only_the_broken_job(videos, tmp_path, capsys):
+    folder = tmp_path / "data"
+    folder.mkdir()
+    for name in GAMMAS:
+        os.link(videos / f"{name}.mp4", folder / f"{name}.mp4")
+    (folder / "broken.mp4").write_bytes(b"this is not a video" * 50)
+    manifest = write_manifest(folder, ["a", "b", "broken", "c"], "videos.csv")
+    out = tmp_path / "out"
+
+    code = main(["batch", str(manifest), "--out", str(out), "--workers", "2", *TINY])
+    captured = capsys.readouterr()
+    assert code == 1, captured.err
+    assert "failed: 003-broken:" in captured.err
+
+    rows = {r["name"]: r for r in read_csv(out / "summary.csv")}
+    assert list(rows) == ["001-a", "002-b", "003-broken", "004-c"]
+    assert rows["003-broken"]["status"] == "failed" and rows["003-broken"]["error"]
+    assert not (out / "003-broken" / "result.json").exists() or \
+        json.loads((out / "003-broken" / "result.json").read_text()).get("status") != "complete"
+    for name in ("001-a", "002-b", "004-c"):
+        report = json.loads((out / name / "result.json").read_text())
+        assert report["status"] == "complete"
+        est = report["parameters"]["gamma"]
+        row = rows[name]
+        assert row["status"] == "complete" and row["error"] == ""
+        assert float(row["gamma"]) == est["value"] and float(row["gamma.std"]) == est["std"]
+        true = GAMMAS[name.split("-")[1]]
+        assert float(row["gamma.true"]) == true
+        assert float(row["gamma.rel_error"]) == pytest.approx((est["value"] - true) / true)
+        assert float(row["wall_s"]) > 0
+        assert (out / name / "job.json").is_file()
+    # the per-setting aggregate is the mean and sample std of the summary's estimates
+    agg = {r["setting"]: r for r in read_csv(out / "aggregate.csv")}
+    slow = [float(rows[n]["gamma"]) for n in ("001-a", "002-b")]
+    assert float(agg["slow"]["gamma.mean"]) == pytest.approx(np.mean(slow))
+    assert float(agg["slow"]["gamma.std"]) == pytest.approx(np.std(slow, ddof=1))
+    assert agg["fast"]["gamma.n"] == "1" and agg["broken"]["complete"] == "0" and agg["broken"]["failed"] == "1"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["counts"] == {"complete": 3, "incomplete": 0, "failed": 1, "pending": 0}
+
+    # fix the broken video; the same command runs that job only
+    mtimes = {n: (out / n / "result.json").stat().st_mtime_ns for n in ("001-a", "002-b", "004-c")}
+    write_decay_video(folder / "broken.mp4", 1.0)
+    code = main(["batch", str(manifest), "--out", str(out), "--workers", "2", *TINY])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "3 reused, 1 to run" in captured.out and "(1 run now, 3 reused)" in captured.out
+    assert {n: (out / n / "result.json").stat().st_mtime_ns for n in mtimes} == mtimes
+    rows = {r["name"]: r for r in read_csv(out / "summary.csv")}
+    assert all(r["status"] == "complete" for r in rows.values())
+    fixed = json.loads((out / "003-broken" / "result.json").read_text())
+    assert float(rows["003-broken"]["gamma"]) == fixed["parameters"]["gamma"]["value"]
+
+
+ray_missing = importlib.util.find_spec("ray") is None
+
+
+@pytest.mark.skipif(ray_missing, reason="Ray is not installed (pip install 'fitode[ray]')")
+def test_ray_executor_gives_the_same_estimates_as_local(videos, tmp_path):
+    """A private local Ray instance (2 CPUs, no dashboard, loopback only) runs the same batch."""
+    manifest = write_manifest(videos, list(GAMMAS), "good.csv")
+    local, on_ray = tmp_path / "local", tmp_path / "ray"
+    assert main(["batch", str(manifest), "--out", str(local), "--workers", "2", "--quiet", *TINY]) == 0
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "fitode", "batch", str(manifest), "--out", str(on_ray),
+                           "--executor", "ray", "--workers", "2", "--quiet", *TINY],
+                          capture_output=True, text=True, timeout=300)
+    wall = time.perf_counter() - t0
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    a = {r["name"]: r for r in read_csv(local / "summary.csv")}
+    b = {r["name"]: r for r in read_csv(on_ray / "summary.csv")}
+    assert list(a) == list(b) == ["001-a", "002-b", "003-c"]
+    for name in a:
+        assert b[name]["status"] == "complete"
+        assert float(b[name]["gamma"]) == pytest.approx(float(a[name]["gamma"]), rel=1e-9, abs=1e-12)
+        ray_job = json.loads((on_ray / name / "job.json").read_text())
+        assert ray_job["pid"] != os.getpid()
+    print(f"ray batch of {len(a)} jobs: {wall:.1f} s wall (subprocess, Ray start included)")
