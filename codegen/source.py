@@ -69,10 +69,15 @@ class VectorField:
     source: str
     fn: Callable = field(repr=False)
     filename: str = ""
+    system: OdeSystem | None = field(default=None, repr=False)
     _subterms: tuple | None = field(default=None, repr=False)
 
     def __call__(self, y, *constants):
         return self.fn(y, *constants)
+
+    def __reduce__(self):
+        # exec'd functions do not pickle; the equation does, and recompiling it is cheap and cached
+        return (compile_system, (self.system,))
 
     def subterms(self) -> tuple[list[str], Callable, list]:
         """Every distinct non-atomic sub-expression of the right-hand sides, children first.
@@ -194,7 +199,7 @@ def compile_system(system: OdeSystem) -> VectorField:
                        + ["import math", "import torch", "", "", ""]) + body + "\n"
     fn, filename = _exec(source, key, "vector_field")
     _smoke_test(fn, layout)
-    vf = VectorField(layout, source, fn, filename)
+    vf = VectorField(layout, source, fn, filename, system)
     _CACHE[key] = vf
     return vf
 

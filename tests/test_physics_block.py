@@ -285,3 +285,17 @@ def test_cuda_matches_cpu():
         torch.testing.assert_close(b.cpu(), a)
         b.sum().backward()
         assert gpu.const_g0.grad.device.type == "cuda"
+
+
+def test_block_pickles_and_copies():
+    import copy
+    import pickle
+
+    block = _block(init="learnable", n_windows=8)
+    block.set_constants({"g0": 3.0})
+    z = _damped_windows()[:, :3]
+    idx = torch.arange(8)
+    out = block(z, 20, 0.2, window_index=idx)
+    for clone in (pickle.loads(pickle.dumps(block)), copy.deepcopy(block)):
+        torch.testing.assert_close(clone(z, 20, 0.2, window_index=idx), out)
+        assert clone.constants()["g0"].item() == 3.0
