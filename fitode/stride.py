@@ -42,7 +42,7 @@ STEPS_PER_PERIOD = 16
 FRACTION = math.sin(math.pi / STEPS_PER_PERIOD)  # ~0.195: rule 2's share of the full change
 MIN_FRAMES = 100
 DIP = 0.2  # how far (as a share) the change must fall back for the frames to count as repeating
-_CHUNK_BYTES = 64 * 2**20
+_CHUNK_BYTES = 16 * 2**20
 
 
 def structure_function(frames: np.ndarray) -> np.ndarray:
@@ -67,7 +67,8 @@ def structure_function(frames: np.ndarray) -> np.ndarray:
         g -= g.mean(axis=0)
         sq += np.einsum("tp,tp->t", g, g)
         spec = np.fft.rfft(g, n=nfft, axis=0)
-        power += (spec.real**2 + spec.imag**2).sum(axis=1)
+        power += np.einsum("fp,fp->f", spec.real, spec.real)
+        power += np.einsum("fp,fp->f", spec.imag, spec.imag)
     cross = np.fft.irfft(power, n=nfft)[:n]
     prefix = np.concatenate([[0.0], np.cumsum(sq)])
     k = np.arange(n)

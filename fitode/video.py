@@ -34,7 +34,7 @@ from fitode.errors import FitodeError  # noqa: E402
 from fitode.stride import auto_stride  # noqa: E402
 
 __all__ = ["Clip", "VideoError", "read_video", "parse_roi", "parse_size", "parse_stride",
-           "IMAGE_SUFFIXES", "MAX_FPS"]
+           "add_video_arguments", "video_kwargs", "IMAGE_SUFFIXES", "MAX_FPS"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm",
                   ".pbm", ".pnm", ".jp2", ".exr", ".hdr")
@@ -162,6 +162,32 @@ def parse_stride(text: str | int) -> int | str:
     if k < 1:
         raise VideoError(f"--stride must be at least 1; got {text!r}")
     return k
+
+
+def add_video_arguments(parser) -> None:
+    """Add the video flags (--fps --start --end --roi --size --color --stride --mask) to an
+    argparse parser; `video_kwargs(args)` turns the parsed values into read_video's keywords."""
+    g = parser.add_argument_group("video")
+    g.add_argument("--fps", type=float, default=None,
+                   help="real frame rate; wins over the file's (needed for slow motion, folders "
+                        "of images and .npy)")
+    g.add_argument("--start", type=float, default=None, help="first time used, in seconds")
+    g.add_argument("--end", type=float, default=None, help="time (seconds) where use stops")
+    g.add_argument("--roi", type=parse_roi, default=None, metavar="X,Y,W,H",
+                   help="crop, in pixels of the source frame")
+    g.add_argument("--size", type=parse_size, default=None, metavar="HxW",
+                   help="frame size after resizing (default: short side 64, aspect kept)")
+    g.add_argument("--color", action="store_true", help="keep RGB channels (default gray)")
+    g.add_argument("--stride", type=parse_stride, default="auto", metavar="K|auto",
+                   help="use every K-th frame, dt = K/fps (default: auto)")
+    g.add_argument("--mask", default=None, metavar="PATH",
+                   help="image or video multiplied with the frames (0 hides, 1 keeps)")
+
+
+def video_kwargs(args) -> dict:
+    """read_video keywords from the flags that `add_video_arguments` added."""
+    return {k: getattr(args, k) for k in
+            ("fps", "start", "end", "roi", "size", "color", "stride", "mask")}
 
 
 # ----------------------------------------------------------------------------- sources
@@ -477,13 +503,15 @@ def read_video(path: str | Path, *, fps: float | None = None, start: float | Non
         roi = _check_roi(roi)
     if size is not None:
         size = _check_size(size)
-    if int(short_side) < 1:
-        raise VideoError(f"short side must be at least 1 pixel; got {short_side}")
-    for name, v in (("--start", start), ("--end", end)):
-        if v is not None and (not math.isfinite(float(v)) or float(v) < 0):
-            raise VideoError(f"{name} must be a time in seconds >= 0; got {v}")
-    if start is not None and end is not None and float(start) >= float(end):
-        raise VideoError(f"--start ({start} s) must come before --end ({end} s)")
+    try:
+        side = int(short_side)
+    except (TypeError, ValueError):
+        side = 0
+    if side < 1:
+        raise VideoError(f"the short side must be a whole number of pixels >= 1; got {short_side!r}")
+    start, end = _seconds("--start", start), _seconds("--end", end)
+    if start is not None and end is not None and start >= end:
+        raise VideoError(f"--start ({start:g} s) must come before --end ({end:g} s)")
 
     if p.is_dir():
         src: _Source = _ImageSource(p)
@@ -493,9 +521,21 @@ def read_video(path: str | Path, *, fps: float | None = None, start: float | Non
         src = _VideoSource(p)
     try:
         return _read(p, src, fps, start, end, roi, size, bool(color), stride_arg,
-                     None if mask is None else Path(mask), int(short_side), progress)
+                     None if mask is None else Path(mask), side, progress)
     finally:
         src.close()
+
+
+def _seconds(name: str, value) -> float | None:
+    if value is None:
+        return None
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not math.isfinite(v) or v < 0:
+        raise VideoError(f"{name} must be a time in seconds >= 0; got {value!r}")
+    return v
 
 
 def _check_user_fps(fps: float | None) -> float | None:
@@ -583,7 +623,7 @@ def _read(p: Path, src: _Source, fps: float | None, start, end, roi, size, color
 
     first, stop = _frame_range(fps_used, start, end)
     if stop is not None and first >= stop:
-        raise VideoError(f"--start {start} s and --end {end} s keep no frame at {fps_used:.6g} fps")
+        raise VideoError(f"--start {start:g} s and --end {end:g} s keep no frame at {fps_used:.6g} fps")
     if isinstance(src, _ArraySource):
         total = src.arr.shape[0]
         if total and first < total:
@@ -644,20 +684,21 @@ def _read(p: Path, src: _Source, fps: float | None, start, end, roi, size, color
         raise VideoError(f"{name}: no frame could be decoded")
     duration = decoded / fps_used
     if first >= decoded:
-        raise VideoError(f"--start {start} s is at or past the end of the video ({duration:.3f} s, "
+        raise VideoError(f"--start {start:g} s is at or past the end of the video ({duration:.3f} s, "
                          f"{decoded} frames at {fps_used:.6g} fps)")
     if stop is not None and decoded < stop:
-        raise VideoError(f"--end {end} s is past the end of the video ({duration:.3f} s, "
+        raise VideoError(f"--end {end:g} s is past the end of the video ({duration:.3f} s, "
                          f"{decoded} frames at {fps_used:.6g} fps)")
     assert buf is not None and hw is not None
 
+    # A view, not a copy, when every buffered frame is kept: the buffer's unused tail was never
+    # written, so it holds no memory, while a copy would briefly double the frames.
     if explicit is not None:
         k, reason = explicit, "given by --stride"
-        frames = buf[:kept].copy() if buf.shape[0] != kept else buf
     else:
         choice = auto_stride(buf[:kept], fps_used)
         k, reason = choice.stride, choice.reason
-        frames = buf[:kept:k].copy()
+    frames = buf[:kept] if explicit is not None or k == 1 else buf[:kept:k].copy()
     del buf
 
     if at_end:
@@ -735,8 +776,6 @@ class _Pipeline:
         if self.color:
             if f.ndim == 2:
                 f = np.repeat(f[:, :, None], 3, axis=2)
-            elif self.order == "BGR":
-                f = cv2.cvtColor(f, cv2.COLOR_BGR2RGB)
         elif f.ndim == 3:
             f = cv2.cvtColor(f, cv2.COLOR_BGR2GRAY if self.order == "BGR" else cv2.COLOR_RGB2GRAY)
         scale, offset = unit
@@ -755,7 +794,10 @@ class _Pipeline:
         if self.final:
             g = cv2.resize(g, (self.out_hw[1], self.out_hw[0]), interpolation=self.interp)
         np.clip(g, 0.0, 1.0, out=g)
-        return g[None] if g.ndim == 2 else g.transpose(2, 0, 1)
+        if g.ndim == 2:
+            return g[None]
+        # BGR -> RGB on the small frame: a channel permutation commutes with the resize
+        return g.transpose(2, 0, 1)[::-1] if self.order == "BGR" else g.transpose(2, 0, 1)
 
 
 class _NoBar:

@@ -361,6 +361,22 @@ def test_bad_flags(call):
     assert "\n" not in str(info.value) and str(info.value).startswith("--")
 
 
+def test_argparse_flags(videos):
+    import argparse
+
+    from fitode.video import add_video_arguments, video_kwargs
+
+    parser = argparse.ArgumentParser()
+    add_video_arguments(parser)
+    args = parser.parse_args(["--fps", "50", "--roi", "0,0,20,10", "--size", "5x10", "--stride",
+                              "2", "--start", "0.04", "--color"])
+    clip = read_video(videos["avi"], **video_kwargs(args))
+    assert clip.frames.shape == (5, 3, 5, 10) and clip.fps == 50 and clip.start_frame == 2
+    assert video_kwargs(parser.parse_args([]))["stride"] == "auto"
+    with pytest.raises(VideoError, match="--roi"):  # propagates as the CLI's one-line error
+        parser.parse_args(["--roi", "1,2"])
+
+
 def _errors(tmp: Path, videos: dict[str, Path]) -> dict[str, tuple]:
     (tmp / "text.mp4").write_text("this is not a video\n")
     (tmp / "empty").mkdir()
@@ -399,6 +415,7 @@ def _errors(tmp: Path, videos: dict[str, Path]) -> dict[str, tuple]:
         "fps text": (v, {"fps": "fast"}, "--fps"),
         "negative start": (v, {"start": -1}, "--start"),
         "nan end": (v, {"end": float("nan")}, "--end"),
+        "text start": (v, {"start": "soon"}, "--start"),
         "start after end": (v, {"start": 0.3, "end": 0.2}, "before --end"),
         "start equals end": (v, {"start": 0.2, "end": 0.2}, "before --end"),
         "trim keeps nothing": (v, {"start": 0.201, "end": 0.202}, "keep no frame"),
@@ -411,6 +428,7 @@ def _errors(tmp: Path, videos: dict[str, Path]) -> dict[str, tuple]:
         "stride zero": (v, {"stride": 0}, "--stride"),
         "stride text": (v, {"stride": "often"}, "--stride"),
         "short side zero": (v, {"short_side": 0}, "short side"),
+        "short side text": (v, {"short_side": "big"}, "short side"),
         "mask missing": (v, {"mask": tmp / "nomask.png"}, "--mask"),
         "mask unreadable image": (v, {"mask": tmp / "bad.png"}, "--mask"),
         "mask not a video": (v, {"mask": tmp / "text.mp4"}, "--mask"),
