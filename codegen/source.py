@@ -11,6 +11,7 @@ inputs live on: nothing in it names a device or a dtype.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import linecache
 import re
 from dataclasses import dataclass, field
@@ -119,7 +120,8 @@ def _body(layout: StateLayout) -> str:
     top = list(layout.top_slots)
     # Only the highest derivatives carry real expressions; the rest are slot copies.
     exprs = [layout.derivatives[i] for i in top]
-    temps = sympy.numbered_symbols("_s")
+    taken = set(printer._idents.values())
+    temps = (sympy.Symbol(n) for n in (f"_s{i}" for i in itertools.count()) if n not in taken)
     replacements, reduced = sympy.cse(exprs, symbols=temps) if exprs else ([], [])
     for sym, _ in replacements:
         printer._idents[sym] = str(sym)
