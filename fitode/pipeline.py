@@ -87,9 +87,10 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
     if n_train < window + 1:
         raise FitodeError(f"{n_train} training frames are fewer than one window of {window} frames plus one; "
                           "use a longer clip, a smaller --stride or a smaller --window")
+    t0 = float(getattr(clip, "start_frame", 0)) / float(clip.fps)  # video time of frame 0: what --start skipped
     if points is not None:
         from fitode.calibrate import check_times
-        check_times(points, (n_frames - 1) * clip.dt)
+        check_times(points, t0, t0 + (n_frames - 1) * clip.dt)
 
     settings = {**_train_defaults(), **train_options, "prior": list(use_prior), "train_fraction": train_fraction}
     for line in rep.understanding_lines(ode, spec, analysis, clip, n_train, settings):
@@ -97,11 +98,13 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
 
     folder = _make_out_dir(target, Path(str(video)).stem)
     recorder = _Recorder(ode.learnable, user_callback)
-    report = rep.base_report(video, clip, ode, spec, analysis, settings, n_train, folder)
+    options = {"fps": fps, "start": start, "end": end, "roi": roi, "size": size, "color": color, "stride": stride,
+               "mask": None if mask is None else str(mask), "calibrate": calibrate}
+    report = rep.base_report(video, clip, ode, spec, analysis, settings, n_train, folder, options, t0)
     rep.write_json(report, folder / "result.json")  # "running": even a hard kill leaves a marked folder
     plots_done: list[str] = []
     from fitode import plots
-    _try_plot(plots.plot_frames, folder / "frames.png", clip.frames, clip.dt, plots_done=plots_done)
+    _try_plot(plots.plot_frames, folder / "frames.png", clip.frames, clip.dt, t0=t0, plots_done=plots_done)
 
     from fitode.api import fit
     try:
@@ -120,13 +123,14 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
     calibration = None
     if points is not None:
         from fitode.calibrate import calibrate_result
-        calibration = calibrate_result(result, ode, params, points, analysis)
+        calibration = calibrate_result(result, ode, params, points, analysis, time_offset=t0,
+                                       seed=int(settings.get("seed", 0)))
         for line in calibration.lines():
             say(line)
-    rep.complete_report(report, result, analysis, calibration)
+    rep.complete_report(report, result, analysis, calibration, t0)
     result.meta.update({"input": report["input"], "calibration": report["calibration"]})
     result.save(folder / "fit.json")
-    plot_warnings = _plots_for_result(folder, result, report, calibration, plots_done)
+    plot_warnings = _plots_for_result(folder, result, report, calibration, plots_done, t0)
     report["warnings"] += plot_warnings
     report["files"] = sorted(["result.json", "fit.json", *plots_done])
     rep.write_json(report, folder / "result.json")
@@ -265,7 +269,7 @@ def _try_plot(fn, path: Path, *args, plots_done: list[str], **kw) -> str | None:
     return None
 
 
-def _plots_for_result(folder: Path, result, report, calibration, plots_done: list[str]) -> list[str]:
+def _plots_for_result(folder: Path, result, report, calibration, plots_done: list[str], t0: float) -> list[str]:
     from dataclasses import asdict
 
     from fitode import plots
@@ -278,7 +282,7 @@ def _plots_for_result(folder: Path, result, report, calibration, plots_done: lis
     if calibration is not None:
         latent, rollout, ylabels = calibration.latent, calibration.rollout, calibration.ylabels(result.states)
     warnings = [
-        _try_plot(plots.plot_latent, folder / "latent.png", result.time, latent, rollout, result.train_frames,
+        _try_plot(plots.plot_latent, folder / "latent.png", result.time + t0, latent, rollout, result.train_frames,
                   result.states, window=int(result.settings.get("window", 0)) or None, ylabels=ylabels,
                   plots_done=plots_done),
         _try_plot(plots.plot_params, folder / "params.png", runs, estimates, units=units, plots_done=plots_done),

@@ -94,25 +94,23 @@ def understanding_lines(ode, spec, analysis, clip, n_train: int, settings: Mappi
     """What fitode understood, printed before it spends minutes training."""
     from fitode import __version__
     lines = [f"fitode {__version__}"]
-    lines += [f"video      {line}" for line in _clip_lines(clip)]
+    lines += _clip_lines(clip)
     n = int(clip.frames.shape[0])
-    shape = tuple(int(s) for s in clip.frames.shape[1:])
-    lines.append(f"frames     {n} used ({n_train} for training), {shape[1]}x{shape[2]} "
-                 f"{'colour' if shape[0] == 3 else 'gray'}, {(n - 1) * clip.dt:.3g} s")
-    lines.append(f"time step  dt = {clip.stride} / {clip.fps:.6g} fps = {clip.dt:.6g} s (fps {clip.fps_source}; "
-                 f"stride {clip.stride}: {clip.stride_reason})")
+    if n_train < n:
+        lines.append(f"training frames: the first {n_train} of {n} ({(n_train - 1) * clip.dt:.4g} s); "
+                     "the rest shows extrapolation")
     for i, nf in enumerate(ode.normal_form()):
-        lines.append(f"{'equation' if i == 0 else '':<10} {nf}")
+        lines.append(f"{'equation:' if i == 0 else '         '} {nf}")
     units = spec.parameters if spec is not None else {}
     learn = [f"{n}" + (f" [{units[n].unit}]" if n in units and units[n].unit else "") for n in ode.learnable]
-    lines.append(f"learnable  {', '.join(learn)}")
+    lines.append(f"learnable: {', '.join(learn)}")
     if ode.fixed:
-        lines.append("fixed      " + ", ".join(f"{k} = {v:.6g}" for k, v in ode.fixed.items()))
-    lines.append(f"prior      N({settings['prior'][0]:g}, {settings['prior'][1]:g}^2) on the latent")
+        lines.append("fixed: " + ", ".join(f"{k} = {v:.6g}" for k, v in ode.fixed.items()))
+    lines.append(f"prior on the latent: N({settings['prior'][0]:g}, {settings['prior'][1]:g}^2)")
     for line in (analysis or {}).get("lines", []):
-        lines.append(f"analysis   {line}")
-    lines.append(f"training   {settings['restarts']} restarts, up to {settings['max_steps']} steps, window "
-                 f"{settings['window']} frames, {settings['integrator']}, {settings['encoder']} encoder, "
+        lines.append(f"identifiability: {line}")
+    lines.append(f"training: {settings['restarts']} restarts, up to {settings['max_steps']} steps, window "
+                 f"{settings['window']} frames, {settings['integrator']} integrator, {settings['encoder']} encoder, "
                  f"{settings['device']}, seed {settings['seed']}")
     return lines
 
@@ -123,12 +121,17 @@ def _clip_lines(clip) -> list[str]:
             return list(clip.describe())
         except Exception:  # noqa: BLE001 - description is cosmetic
             pass
-    return [f"{getattr(clip, 'path', '?')}"]
+    return [f"input: {getattr(clip, 'path', '?')}", f"dt: {clip.dt:.6g} s"]
 
 
 # ----------------------------------------------------------------------------- result.json
 def base_report(video, clip, ode, spec, analysis, settings: Mapping[str, Any], n_train: int,
-                folder: Path) -> dict[str, Any]:
+                folder: Path, options: Mapping[str, Any] | None = None, t0: float = 0.0) -> dict[str, Any]:
+    """result.json before training (status "running"): input, equation, analysis, settings.
+
+    options: the video flags as given (fps, start, end, roi, size, color, stride, mask, calibrate).
+    t0: video time of the first frame used.
+    """
     from fitode import __version__
     n = int(clip.frames.shape[0])
     units = {k: p.unit for k, p in (spec.parameters.items() if spec is not None else [])}
@@ -150,7 +153,12 @@ def base_report(video, clip, ode, spec, analysis, settings: Mapping[str, Any], n
             "stride_reason": getattr(clip, "stride_reason", None),
             "dt": float(clip.dt),
             "duration_s": (n - 1) * float(clip.dt),
-            **{k: _plain(getattr(clip, k, None)) for k in ("start", "end", "roi", "size", "color", "mask")},
+            "first_frame_time_s": t0,
+            "fps_container": getattr(clip, "fps_container", None),
+            "source_size": _plain(getattr(clip, "source_size", None)),
+            "n_source_frames": getattr(clip, "n_source_frames", None),
+            "notes": list(getattr(clip, "notes", []) or []),
+            "options": {k: _plain(v) for k, v in (options or {}).items()},
         },
         "equation": {
             "text": ode.text,
@@ -185,7 +193,7 @@ def _jsonable(v: Any) -> bool:
         return False
 
 
-def complete_report(report: dict[str, Any], result, analysis, calibration) -> None:
+def complete_report(report: dict[str, Any], result, analysis, calibration, t0: float = 0.0) -> None:
     """Fill the estimates, runs and trajectory of a finished fit (and its calibration) into report."""
     units = report["equation"].get("units", {})
     n_runs = len(result.runs)
@@ -237,7 +245,7 @@ def complete_report(report: dict[str, Any], result, analysis, calibration) -> No
     if calibration is not None:
         latent, rollout = calibration.latent, calibration.rollout
     report["trajectory"] = {
-        "time": [float(t) for t in result.time],
+        "time": [float(t) + t0 for t in result.time],
         "train_frames": int(result.train_frames),
         "states": list(result.states),
         "units": "physical" if calibration is not None else "latent",

@@ -1,0 +1,137 @@
+"""Calibration: strict parsing, the affine map, and the re-fit of constants in physical units.
+
+No training here: a FitResult is built around a latent that is a known affine image of an exact
+trajectory, which is what a perfect encoder would give. The re-fit must then return the physical
+constants for scale-dependent ones and leave scale-free ones (nearly) unchanged.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from fitode.calibrate import (CalibrationError, CalibrationPoint, calibrate_result, check_times, fit_affine,
+                              parse_calibration)
+from fitode.eqparse import ParamSpec, parse
+from fitode.train.result import Estimate, FitResult, RunRecord
+
+
+def fake_result(system, time, latent, values, std=None):
+    """A FitResult as the trainer would return it for a perfect encoder with these constants."""
+    latent = np.asarray(latent, dtype=float).reshape(len(time), -1)
+    std = std or {}
+    return FitResult(
+        parameters={k: Estimate(v, std.get(k, 0.0), 3) for k, v in values.items()},
+        runs=[RunRecord(index=0, seed=0, init={}, final=dict(values), loss=1e-4, steps=500, status="ok",
+                        converged=True)],
+        selected=[0], best=0, latent=latent, rollout=latent.copy(), time=np.asarray(time, dtype=float),
+        train_frames=len(time), dt=float(time[1] - time[0]), states=list(system.states), equation=system.text,
+        fixed=dict(system.fixed), settings={"window": 20, "integrator": "rk4", "substeps": 1})
+
+
+def analysis(**scales):
+    return {"constants": {k: {"separable": True, "combination": None, "scale": v, "reason": ""}
+                          for k, v in scales.items()}, "lines": []}
+
+
+# ----------------------------------------------------------------------------- parsing
+def test_parse_reads_items_and_whitespace():
+    pts = parse_calibration(" h(0)=0.07; h( 25 ) = 1e-2 \n h(12.5)=0.04", ["h"])
+    assert pts == [CalibrationPoint("h", 0.0, 0.07), CalibrationPoint("h", 25.0, 0.01),
+                   CalibrationPoint("h", 12.5, 0.04)]
+
+
+@pytest.mark.parametrize("text, words", [
+    ("", "empty"),
+    ("x(0)=1; x(2)=3", "not a state"),
+    ("h(0)=1", "two or more"),
+    ("h(0)=1; h(0)=2", "two or more"),
+    ("h(0)=1; h(3)=1", "all equal"),
+    ("h(0)=1, h(3)=2", "not a number"),
+    ("h(a)=1; h(3)=2", "not a number"),
+    ("h'(0)=1; h'(3)=2", "derivative"),
+    ("h(0)=inf; h(3)=2", "not finite"),
+    ("h 0 = 1", "cannot read"),
+])
+def test_parse_errors_are_one_line(text, words):
+    with pytest.raises(CalibrationError) as e:
+        parse_calibration(text, ["h"])
+    assert words in str(e.value) and "\n" not in str(e.value)
+
+
+def test_times_must_lie_inside_the_clip():
+    pts = parse_calibration("h(0)=1; h(30)=2", ["h"])
+    check_times(pts, 30.0)
+    with pytest.raises(CalibrationError, match="outside the clip"):
+        check_times(pts, 29.0)
+    with pytest.raises(CalibrationError, match="outside the clip"):
+        check_times(pts, 1.0, 40.0)
+
+
+def test_affine_map_is_least_squares_on_interpolated_latent():
+    t = np.linspace(0, 10, 101)
+    z = np.sin(t)[:, None]
+    pts = [CalibrationPoint("x", 1.05, 3 * math.sin(1.05) + 2), CalibrationPoint("x", 4.0, 3 * math.sin(4.0) + 2),
+           CalibrationPoint("x", 7.33, 3 * math.sin(7.33) + 2 + 0.01)]
+    m = fit_affine(pts, t, z, ["x"])["x"]
+    assert m.a == pytest.approx(3, rel=3e-3) and m.b == pytest.approx(2, abs=1e-2)
+    assert 0 < m.rms < 0.01 and m.n_points == 3
+
+
+def test_affine_map_refuses_a_flat_latent():
+    t = np.linspace(0, 10, 101)
+    z = np.ones((101, 1))
+    with pytest.raises(CalibrationError, match="hardly changes"):
+        fit_affine([CalibrationPoint("x", 1, 0.0), CalibrationPoint("x", 2, 1.0)], t, z, ["x"])
+
+
+# ----------------------------------------------------------------------------- re-fit
+def test_scale_free_constants_come_out_unchanged():
+    """z'' + g1 z' + g0 z = 0: both constants survive any affine change of the latent."""
+    system = parse("x'' + g1*x' + g0*x = 0")
+    t = np.arange(200) * 0.1
+    x = 0.05 * np.exp(-0.04 * t) * np.cos(2 * t)  # physical units: a 5 cm swing
+    z = (x - 0.01) / 0.03  # an encoder's arbitrary scale and offset
+    truth = {"g0": 4.0016, "g1": 0.08}
+    res = fake_result(system, t, z, truth)
+    pts = parse_calibration(f"x(0)={x[0]}; x(7.3)={np.interp(7.3, t, x)}", ["x"])
+    cal = calibrate_result(res, system, {}, pts, analysis(g0="free", g1="free"))
+    m = cal.maps["x"]
+    assert m.a == pytest.approx(0.03, rel=1e-3) and m.b == pytest.approx(0.01, abs=1e-4)
+    np.testing.assert_allclose(cal.latent[:, 0], x, atol=2e-4)
+    for name, v in truth.items():
+        c = cal.constants[name]
+        assert not c["converted"] and c["after"] == v  # scale-free: the estimate is kept
+        assert c["refit"] == pytest.approx(v, rel=0.02)  # and the re-fit agrees with it
+    assert not cal.notes
+
+
+def test_scale_dependent_constant_is_converted_to_physical_units():
+    """h' = -k*sqrt(h): with z = h/4, the latent-unit k is k/2; calibration must give k back."""
+    system = parse("h' = -k*sqrt(h)")
+    k, a = 0.05, 4.0
+    t = np.arange(150) * 0.15
+    h = (1.0 - k * t / 2) ** 2  # exact solution from h(0) = 1
+    z = h / a
+    res = fake_result(system, t, z, {"k": k / math.sqrt(a)}, std={"k": 0.001})
+    pts = parse_calibration(f"h(0)={h[0]}; h({t[-1]})={h[-1]}", ["h"])
+    params = {"k": ParamSpec(init=0.1, min=0.0, unit="m^0.5/s")}
+    cal = calibrate_result(res, system, params, pts, analysis(k="dependent"))
+    c = cal.constants["k"]
+    assert c["converted"]
+    assert c["after"] == pytest.approx(k, rel=0.01)
+    assert c["std_after"] == pytest.approx(0.001 * math.sqrt(a), rel=0.02)  # relative spread is kept
+    assert np.nanmax(np.abs(cal.rollout[:, 0] - h)) < 0.01
+    assert "calibrated" in cal.lines()[1] and "x2" in cal.lines()[1]
+
+
+def test_without_analysis_every_constant_is_refitted():
+    """Free fall of a latent with a flipped sign: y'' = -g needs the sign search."""
+    system = parse("y'' = -a")
+    t = np.arange(60) * 0.02
+    y = 2.0 + 0.5 * t - 9.81 / 2 * t**2
+    z = -(y - 1.0) / 3.0  # a negative scale: the latent falls upwards
+    res = fake_result(system, t, z, {"a": -9.81 / 3.0})
+    pts = parse_calibration(f"y(0)={y[0]}; y({t[40]})={y[40]}", ["y"])
+    cal = calibrate_result(res, system, {}, pts, None)
+    assert cal.maps["y"].a == pytest.approx(-3.0, rel=1e-3)
+    assert cal.constants["a"]["after"] == pytest.approx(9.81, rel=0.01)
