@@ -39,7 +39,9 @@ else:
     out = {"frames": len(clip.frames), "shape": list(clip.frames.shape), "stride": clip.stride,
            "frames_mb": clip.frames.nbytes / 2**20, "reason": clip.stride_reason}
 out["wall_s"] = time.perf_counter() - t0
-out["maxrss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
+use = resource.getrusage(resource.RUSAGE_SELF)
+out["cpu_s"] = use.ru_utime + use.ru_stime  # less sensitive than wall time to a busy machine
+out["maxrss_mb"] = use.ru_maxrss / 1024  # KiB on Linux
 print(json.dumps(out))
 """
 
@@ -92,15 +94,17 @@ def main() -> None:
     ap.add_argument("--fps", type=float, default=60.0)
     ap.add_argument("--video", type=Path, default=Path("/tmp/fitode-bench/fullhd_60fps.mp4"))
     ap.add_argument("--keep", action="store_true", help="keep the generated video")
+    ap.add_argument("--reuse", action="store_true", help="use the video at --video if it exists")
     ap.add_argument("--out", type=Path, default=HERE / "out" / "video_memory.json")
     args = ap.parse_args()
 
     args.video.parent.mkdir(parents=True, exist_ok=True)
-    gen_s = generate(args.video, args.seconds, args.fps)
+    reuse = args.reuse and args.video.exists()
+    gen_s = 0.0 if reuse else generate(args.video, args.seconds, args.fps)
     size_mb = args.video.stat().st_size / 2**20
     n = int(round(args.seconds * args.fps))
     full_gb = n * 1080 * 1920 * 3 / 2**30
-    print(f"generated {args.video} ({n} frames 1920x1080 at {args.fps:g} fps, {size_mb:.0f} MB) "
+    print(f"{'reused' if reuse else 'generated'} {args.video} ({n} frames 1920x1080 at {args.fps:g} fps, {size_mb:.0f} MB) "
           f"in {gen_s:.0f} s; holding every frame in full would take {full_gb:.1f} GiB (uint8 BGR)")
 
     rows = []
@@ -110,18 +114,20 @@ def main() -> None:
         rows.append(res)
         shape = "x".join(map(str, res["shape"])) if res["shape"] else "-"
         print(f"  {name:<36} peak RSS {res['maxrss_mb']:7.0f} MB   wall {res['wall_s']:6.1f} s   "
+              f"cpu {res['cpu_s']:6.1f} s   "
               f"frames {shape:<16} stride {res['stride']}", flush=True)
 
     base = rows[0]["maxrss_mb"]
     print()
     print(f"| setting | peak RSS (MB) | above baseline (MB) | kept frames (MB) | wall (s) | "
-          f"frames/s | kept shape | stride |")
-    print("|---|---:|---:|---:|---:|---:|---|---:|")
+          f"CPU (s) | frames/s (wall) | kept shape | stride |")
+    print("|---|---:|---:|---:|---:|---:|---:|---|---:|")
     for r in rows:
         fps_read = n / r["wall_s"] if r["frames"] else float("nan")
         shape = "x".join(map(str, r["shape"])) if r["shape"] else "-"
         print(f"| {r['setting']} | {r['maxrss_mb']:.0f} | {r['maxrss_mb'] - base:.0f} | "
-              f"{r.get('frames_mb', 0):.0f} | {r['wall_s']:.1f} | {fps_read:.0f} | {shape} | "
+              f"{r.get('frames_mb', 0):.0f} | {r['wall_s']:.1f} | {r['cpu_s']:.1f} | {fps_read:.0f} | "
+              f"{shape} | "
               f"{r['stride'] or '-'} |")
     auto = next(r for r in rows if r["setting"].startswith("default"))
     print(f"\nauto stride: {auto['reason']}")
@@ -131,10 +137,11 @@ def main() -> None:
         "video": {"path": str(args.video), "frames": n, "fps": args.fps, "size": [1080, 1920],
                   "codec": "mp4v", "file_mb": size_mb, "generate_s": gen_s,
                   "full_resolution_gib": full_gb},
-        "machine": {"python": platform.python_version(), "cpus": os.cpu_count()},
+        "machine": {"python": platform.python_version(), "cpus": os.cpu_count(),
+                    "load_average": os.getloadavg()},
         "rows": rows}, indent=2))
     print(f"wrote {args.out}")
-    if not args.keep:
+    if not (args.keep or reuse):
         args.video.unlink()
 
 

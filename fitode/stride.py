@@ -2,7 +2,7 @@
 
 The paper picked the stride by hand for every experiment. `auto_stride` picks it from the
 preprocessed frames themselves, with one target: about `STEPS_PER_PERIOD` = 16 time steps per
-period of the fastest visible oscillation, i.e. omega*dt ~ 2*pi/16 ~ 0.39, the value of the
+period of the visible oscillation, i.e. omega*dt ~ 2*pi/16 ~ 0.39, the value of the
 paper's synthetic benchmark (omega = 2, dt = 0.2), at which the method is known to work.
 
 The measurement is the structure function of the sequence,
@@ -17,9 +17,9 @@ r(k) = sqrt(D(k) - noise). Two rules read r:
 
 1. Periodic: if the frames come back (r dips by at least 20% between two high stretches, and
    a shallow dip recurs at twice the lag; see `_period`), the lag of that dip is the period P
-   in frames, and the stride is round(P / 16). This rule does not care how the pixel difference saturates: a small object
-   that moves by more than its own size makes r plateau early, but it still comes back after
-   one period.
+   in frames, and the stride is round(P / 16). This rule does not care how the pixel
+   difference saturates: a small object that moves by more than its own size makes r plateau
+   early, but the frames still come back after one period.
 2. Otherwise (decays, drifts, free fall): the stride is the smallest lag at which r reaches
    sin(pi/16) ~ 0.195 of its largest value R over lags up to 2N/3. For a signal that varies
    like a sinusoid this is exactly rule 1 (r(k) ~ |sin(pi k / P)|); for a monotone change it

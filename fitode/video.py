@@ -488,8 +488,9 @@ def read_video(path: str | Path, *, fps: float | None = None, start: float | Non
 
     `sha256` is that of the file; for a folder it is the SHA-256 of the text made of one line
     per image, in the order used: the file name, a tab, the SHA-256 of its bytes.
-    `n_source_frames` is the number of frames decoded when decoding reached the end of the file;
-    when `end` stopped it earlier, the larger of the container's count and the frames seen.
+    `n_source_frames` is exact for folders and arrays, and for a video file the number of frames
+    decoded when decoding reached its end; when `end` stopped it earlier, the larger of the
+    container's count and the frames seen.
     """
     p = Path(path)
     if not p.exists():
@@ -639,7 +640,7 @@ def _read(p: Path, src: _Source, fps: float | None, start, end, roi, size, color
     the_mask: _Mask | None = None
 
     hint = src.count_hint
-    todo = (stop if stop is not None else hint)
+    todo = hint if stop is None else (stop if hint is None else min(stop, hint))
     bar = _progress(progress, todo, name)
     i = 0
     try:
@@ -668,7 +669,7 @@ def _read(p: Path, src: _Source, fps: float | None, start, end, roi, size, color
                     small = pipe(frame, src.unit(frame),
                                  the_mask.current() if the_mask is not None else None)
                     if buf is None or kept == buf.shape[0]:
-                        buf = _grow(buf, kept, small.shape, hint, first, explicit)
+                        buf = _grow(buf, kept, small.shape, todo, first, explicit)
                     buf[kept] = small
                     kept += 1
             i += 1
@@ -701,7 +702,9 @@ def _read(p: Path, src: _Source, fps: float | None, start, end, roi, size, color
     frames = buf[:kept] if explicit is not None or k == 1 else buf[:kept:k].copy()
     del buf
 
-    if at_end:
+    if src.kind != "video" and src.count_hint is not None:
+        n_source = src.count_hint  # exact for folders and arrays
+    elif at_end:
         n_source = decoded
     else:
         n_source = max(decoded, src.count_hint or 0)

@@ -187,6 +187,7 @@ def test_trim_keeps_start_inclusive_end_exclusive(ramp_npy):
     path, arr = ramp_npy
     clip = read_video(path, fps=10, start=1.0, end=3.0, stride=1)
     assert clip.start_frame == 10 and clip.end_frame == 30 and len(clip.frames) == 20
+    assert clip.n_source_frames == 50
     np.testing.assert_allclose(clip.frames[:, 0], arr[10:30] / 255, atol=1e-6)
     assert clip.times[0] == pytest.approx(1.0) and clip.times[-1] == pytest.approx(2.9)
 
