@@ -361,3 +361,43 @@ def test_cli_dry_run_lists_jobs_and_writes_nothing(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "1 job: 0 reused, 1 to run" in out and "would run 001-a" in out and "max_steps=5" in out
     assert not (tmp_path / "videos-results").exists()
+
+
+def test_sigint_stops_workers_and_leaves_the_summary_consistent(tmp_path):
+    """A real Ctrl-C (SIGINT to the driver) while jobs run: the driver exits promptly, its workers are
+    gone, summary.json parses and marks the unfinished jobs pending; the next run finishes them."""
+    import signal
+    import subprocess
+    import sys
+
+    _video(tmp_path, "quick.json", gamma=0.5)
+    for i in range(3):
+        _video(tmp_path, f"slow{i}.json", gamma=0.5, sleep=30)
+    m = _csv(tmp_path, [f"quick.json,A,{EQ},"] + [f"slow{i}.json,A,{EQ}," for i in range(3)])
+    out = tmp_path / "out"
+    script = ("import sys; from fitode.batch import run_batch\n"
+              "if __name__ == '__main__':\n"
+              f"    run_batch({str(m)!r}, {str(out)!r}, workers=2, runner={RUNNER!r}, log=None)\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen([sys.executable, "-c", script], env=env, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while time.time() < deadline and len(_calls(out)) < 3:  # quick is done and two slow ones are running
+        time.sleep(0.1)
+    assert len(_calls(out)) == 3
+    t0 = time.time()
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert time.time() - t0 < 15 and proc.returncode != 0 and "KeyboardInterrupt" in err
+    worker_pids = [int(line.split()[1]) for line in (out / "calls.log").read_text().splitlines()]
+    time.sleep(0.5)
+    for pid in worker_pids:  # no worker is left behind, still sleeping
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)
+    s = _summary(out)
+    assert s["interrupted"] is True
+    assert [j["status"] for j in s["jobs"]] == ["complete", "pending", "pending", "pending"]
+    for i in range(3):
+        _video(tmp_path, f"slow{i}.json", gamma=0.5)
+    (out / "calls.log").unlink()
+    res = run_batch(m, out, workers=2, runner=RUNNER, log=None)
+    assert res.ok and res.reused == ["001-quick"] and sorted(_calls(out)) == ["002-slow0", "003-slow1", "004-slow2"]

@@ -25,8 +25,9 @@ from fitode.errors import FitodeError
 
 from .job import JobOutcome, Task, execute_job, one_line, single_thread
 
-# Third-party only: a module that fails to import in the forkserver must not take it down.
-PRELOAD = ("torch", "cv2", "sympy", "numpy", "fitode.batch.job")
+# fitode.batch.warm imports the heavy modules inside try blocks: a module that fails to import
+# must not take the forkserver (and so every job) down.
+PRELOAD = ("fitode.batch.warm",)
 
 OnStart = Callable[[Task], None]
 OnDone = Callable[[Task, JobOutcome], None]
