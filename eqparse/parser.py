@@ -483,30 +483,75 @@ def _solve(b: _Builder, eq: _Equation, state_names: set[str]) -> tuple[str, int,
     return name, top, solution, occ
 
 
+# Inverses of one-to-one functions, for isolating a derivative nested inside them.
+_INVERSES = {
+    sympy.exp: sympy.log, sympy.log: sympy.exp, sympy.sinh: sympy.asinh, sympy.asinh: sympy.sinh,
+    sympy.tanh: sympy.atanh, sympy.atanh: sympy.tanh, sympy.asin: sympy.sin, sympy.acos: sympy.cos,
+    sympy.atan: sympy.tan,
+}
+
+
 def _solve_for(b: _Builder, expr: sympy.Expr, target: sympy.Symbol, eq: _Equation) -> sympy.Expr:
+    """Solve expr = 0 for target, refusing anything without exactly one real solution.
+
+    sympy.solve is deliberately not used: on transcendental input it can run for minutes. Three
+    cases are solved directly: linear in the target; the target occurring once, under one-to-one
+    functions that are inverted step by step; a fraction whose numerator is linear in the target.
+    """
     shown = target.name
+
+    def refuse(why: str) -> EquationError:
+        return b.error(f"cannot solve this equation for {shown}: {why}; write it as {shown} = ...",
+                       eq.line, eq.column)
+
     if expr.is_polynomial(target):
         degree = sympy.degree(expr, target)
-        if degree == 1:
-            coeff = sympy.diff(expr, target)
-            if coeff == 0:
-                raise b.error(f"cannot solve for {shown}: its coefficient is zero", eq.line, eq.column)
-            return -expr.subs(target, 0) / coeff
-        raise b.error(f"cannot solve uniquely for {shown}: it appears to the power {degree}; "
-                      f"write the equation as {shown} = ...", eq.line, eq.column)
-    if sympy.count_ops(expr) > _SOLVE_MAX_OPS:
-        raise b.error(f"cannot solve for {shown}: the equation is too complex; write it as {shown} = ...",
-                      eq.line, eq.column)
-    try:
-        solutions = sympy.solve(expr, target, dict=False)
-    except Exception:  # sympy's solver raises assorted errors (NotImplementedError, ...) on hard input
-        solutions = None
-    if solutions is None or not isinstance(solutions, list) or not solutions:
-        raise b.error(f"cannot solve this equation for {shown}; write it as {shown} = ...", eq.line, eq.column)
-    if len(solutions) > 1:
-        raise b.error(f"cannot solve uniquely for {shown}: sympy finds {len(solutions)} solutions; "
-                      f"write the equation as {shown} = ...", eq.line, eq.column)
-    solution = solutions[0]
-    if not isinstance(solution, sympy.Expr) or solution.has(target):
-        raise b.error(f"cannot solve this equation for {shown}; write it as {shown} = ...", eq.line, eq.column)
-    return solution
+        if degree != 1:
+            raise b.error(f"cannot solve uniquely for {shown}: it appears to the power {degree}; "
+                          f"write the equation as {shown} = ...", eq.line, eq.column)
+        return _linear(expr, target, refuse)
+    if expr.count(target) == 1:
+        return _isolate(expr, target, refuse)
+    num, den = sympy.fraction(sympy.together(expr))
+    if num.is_polynomial(target) and sympy.degree(num, target) == 1:
+        solution = _linear(num, target, refuse)
+        if den.has(target) and den.subs(target, solution) == 0:
+            raise refuse("the only candidate makes a denominator zero")
+        return solution
+    raise refuse("it appears in a form that has no unique closed-form solution")
+
+
+def _linear(expr: sympy.Expr, target: sympy.Symbol, refuse) -> sympy.Expr:
+    coeff = sympy.diff(expr, target)
+    if coeff == 0:
+        raise refuse("its coefficient is zero")
+    # Distribute the division over the sum (-c*x'/m - k*x/m) without expanding powers.
+    return sympy.expand(-expr.subs(target, 0) / coeff, deep=False, power_base=False, power_exp=False,
+                        multinomial=False, log=False)
+
+
+def _isolate(expr: sympy.Expr, target: sympy.Symbol, refuse) -> sympy.Expr:
+    lhs, rhs = expr, sympy.Integer(0)
+    while lhs != target:
+        if lhs.is_Add or lhs.is_Mul:
+            inner = next(a for a in lhs.args if a.has(target))
+            rest = lhs.func(*[a for a in lhs.args if not a.has(target)])
+            rhs = rhs - rest if lhs.is_Add else rhs / rest
+            lhs = inner
+        elif lhs.is_Pow:
+            base, exponent = lhs.args
+            if base.has(target):
+                if exponent.is_Rational and abs(exponent.p) == 1:
+                    rhs, lhs = rhs ** (1 / exponent), base
+                else:
+                    raise refuse(f"it is raised to the power {exponent}, which has no unique inverse")
+            else:
+                rhs, lhs = sympy.log(rhs) / sympy.log(base), exponent
+        elif isinstance(lhs, sympy.Function) and len(lhs.args) == 1:
+            inverse = _INVERSES.get(lhs.func)
+            if inverse is None:
+                raise refuse(f"{lhs.func.__name__.lower()} is not one-to-one")
+            rhs, lhs = inverse(rhs), lhs.args[0]
+        else:
+            raise refuse("it appears in a form that cannot be inverted")
+    return rhs
