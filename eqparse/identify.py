@@ -1,0 +1,500 @@
+"""What a latent can measure: separability and scale of each learnable constant.
+
+The encoder learns every state only up to the scale and offset that the prior imposes, and the
+loss only sees the right-hand sides f(y; p) of the equations. Two questions per learnable
+constant p_i, both decided numerically at seeded random points, with exact sympy derivatives:
+
+Separable. J[r, i] = d f_r / d p_i is evaluated at many sampled states y (one generic draw of
+the constants, fixed constants at their values) and the rows of all equations and points are
+stacked. p_i is separable when e_i lies in the row space of J, i.e. every null vector of J has a
+zero i-th component. Otherwise only combinations of constants are measurable: constants linked
+through a null vector form a group, and the group's combinations are named by writing each f_r
+as sum_j c_j(p) * phi_j(y) (expand, split each term into its constant and state factors); the
+coefficients c_j that involve the group are what the video measures (x'' = -k/m*x gives k/m;
+the sliding block gives sin(alpha) - mu*cos(alpha)). When a right-hand side does not split that
+way the report gives the number of measurable combinations instead of naming them.
+
+Scale. Replace a state x by a*z + b. Infinitesimally (a = 1 + da, b = db) the equation for z
+changes by V = sum_k y_k * df/dy_k - [own equation] f (scale; y_k = x, x', ..., whose
+derivatives all scale by a) and W = df/dx (offset). The change can be absorbed by new constant
+values p + dp exactly when alpha*V + beta*W = J dp, so the symmetries of the equation are the
+null space of [V_1..V_S, W_1..W_S, -J] over the sampled points. A constant is "dependent" when
+some symmetry moves it (after removing the directions J cannot see): its value is tied to the
+latent's units (h' = -k*sqrt(h): k -> k/sqrt(a); free fall h'' = g: g -> g/a). It is "free"
+when no symmetry moves it and every state it touches can be rescaled freely (I' = -gamma*I).
+When a state's scale is pinned by nonlinear terms (sin(theta)), the equations are linearised
+at the origin (the small-amplitude motion) and the test is repeated there: a constant that no
+symmetry of the linear system moves is "free-small-amplitude" (the pendulum's L); one that is
+moved, that vanishes in the linear part, or where no linearisation exists is "dependent".
+"""
+from __future__ import annotations
+
+import re
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import sympy
+from sympy.printing.precedence import precedence
+from sympy.printing.str import StrPrinter
+
+from .system import OdeSystem, deriv_symbol
+
+SCALES = ("free", "dependent", "free-small-amplitude")
+
+_SEED = 20250101
+_TOL = 1e-7
+_PREFIX = "enters only through "  # relative tolerance on singular values and null-vector components
+
+
+@dataclass(frozen=True)
+class ConstantReport:
+    """What the video can tell about one learnable constant."""
+
+    name: str
+    separable: bool
+    combination: str | None  # the measurable combination when not separable
+    scale: str  # one of SCALES
+    reason: str
+
+
+@dataclass(frozen=True)
+class IdentifiabilityReport:
+    constants: tuple[ConstantReport, ...]
+    rank: int  # number of independent measurable combinations of the learnable constants
+    notes: tuple[str, ...] = ()
+
+    def __getitem__(self, name: str) -> ConstantReport:
+        for c in self.constants:
+            if c.name == name:
+                return c
+        raise KeyError(name)
+
+    def lines(self) -> list[str]:
+        if not self.constants:
+            return ["no learnable constants: nothing to estimate"]
+        width = max(len(c.name) for c in self.constants)
+        out = []
+        for c in self.constants:
+            sep = "separable" if c.separable else (
+                f"only as {c.combination}" if c.combination else "not measurable")
+            out.append(f"{c.name:<{width}}  {sep:<12}  scale: {c.scale}")
+            reason = c.reason
+            if c.combination and reason.startswith(_PREFIX + c.combination + "; "):
+                reason = reason[len(_PREFIX + c.combination + "; "):]
+            out.append(f"{'':<{width}}    {reason}")
+        n = len(self.constants)
+        if self.rank < n:
+            out.append(f"{self.rank} of {n} constants can be told apart from a video")
+        out += list(self.notes)
+        return out
+
+
+def analyse(system: OdeSystem, *, seed: int = _SEED) -> IdentifiabilityReport:
+    """Classify every learnable constant of `system` (see the module docstring for how)."""
+    names = list(system.learnable)
+    if not names:
+        return IdentifiabilityReport((), 0)
+    model = _Model(system)
+    rng = np.random.default_rng(seed)
+
+    present = [n for n in names if any(model.f[r].has(model.p[n]) for r in range(model.n_eq))]
+    sep = _separability(model, present, rng)
+    if sep is None:
+        reports = tuple(ConstantReport(n, False, None, "dependent",
+                                       "could not be analysed: the right-hand side is not finite at the "
+                                       "sampled points") for n in names)
+        return IdentifiabilityReport(reports, 0, ("the identifiability analysis failed to evaluate the equation",))
+    rank, separable, groups = sep
+
+    full = _symmetries(model, present, model.f, rng)
+    linear = None
+
+    decomp = _coefficients(system, model)
+    reports = []
+    for name in names:
+        if name not in present:
+            reports.append(ConstantReport(name, False, None, "free",
+                                          "does not appear in the solved equation, so the video cannot tell its value"))
+            continue
+        touched = model.touched(name)
+        if not separable[name]:
+            group = groups[name]
+            combination = _combination(group, decomp, model, rank_of_group=groups_rank(model, group, rng))
+            sep_text = f"{_PREFIX}{combination}; "
+        else:
+            combination, sep_text = None, ""
+        if full is None:
+            scale, why = "dependent", "the scale analysis could not evaluate the equation"
+        elif name in full.dependent:
+            scale = "dependent"
+            why = (f"its value changes when {_moved(full, name)}, so it comes out in the latent's "
+                   "units (calibrate the latent or fix it)")
+        elif not (touched & full.pinned):
+            scale = "free"
+            why = f"its value does not change when {_are(sorted(touched, key=model.states.index))} rescaled"
+        else:
+            pinned_set = touched & full.pinned
+            pinned = _join(sorted(pinned_set, key=model.states.index))
+            if linear is None:
+                linear = _linearised(model, present, rng)
+            if linear is not False and pinned_set <= linear.pinned:
+                # Even the linear part pins the scale: fixed terms (g, a number) set the latent's
+                # units at every amplitude, so the constant is measured in those units.
+                scale = "free"
+                why = (f"the fixed terms of the equation ({_fixed_terms(system, pinned_set)}) set the scale "
+                       f"of {pinned}, and no rescaling changes its value")
+            elif linear is False:
+                scale = "dependent"
+                why = (f"the nonlinear terms fix the scale of {pinned}, and the equations have no "
+                       "linearisation at 0 to test the small-amplitude case")
+            elif not any(fl.has(model.p[name]) for fl in linear.f):
+                scale = "dependent"
+                why = (f"appears only in nonlinear terms, which tie its value to the scale of {pinned}")
+            elif name in linear.dependent:
+                scale = "dependent"
+                why = (f"the nonlinear terms fix the scale of {pinned}; even in the small-amplitude "
+                       f"(linearised) equation its value changes when {_moved(linear, name)}")
+            else:
+                scale = "free-small-amplitude"
+                why = (f"the nonlinear terms fix the scale of {pinned} only at large amplitude; in the "
+                       f"small-amplitude (linearised) equation its value does not change when "
+                       f"{_are(sorted(pinned_set, key=model.states.index))} rescaled")
+        reports.append(ConstantReport(name, separable[name], combination, scale, sep_text + why))
+
+    notes = []
+    if full is not None and full.pinned:
+        if linear is None:
+            linear = _linearised(model, present, rng)
+        by_fixed = [s for s in model.states if s in full.pinned and linear is not False and s in linear.pinned]
+        by_nonlinear = [s for s in model.states if s in full.pinned and s not in by_fixed]
+        if by_nonlinear:
+            notes.append(f"the nonlinear terms fix the scale of {_join(by_nonlinear)}: at large amplitude the "
+                         "encoder must learn it in the equation's own units")
+        if by_fixed:
+            notes.append(f"the fixed terms ({_fixed_terms(system, set(by_fixed))}) set the scale of "
+                         f"{_join(by_fixed)}: the encoder must learn it in the equation's own units")
+    return IdentifiabilityReport(tuple(reports), rank, tuple(notes))
+
+
+def _are(items) -> str:
+    items = list(items)
+    return _join(items) + (" are" if len(items) > 1 else " is")
+
+
+def _fixed_terms(system: OdeSystem, states: set[str]) -> str:
+    used = [n for n in system.fixed if any(system.rhs[s].has(sympy.Symbol(n)) for s in states)]
+    return ", ".join(used) if used else "its numbers"
+
+
+def _join(items) -> str:
+    items = list(items)
+    if len(items) <= 1:
+        return "".join(items)
+    return ", ".join(items[:-1]) + " and " + items[-1]
+
+
+# --- the numeric model -----------------------------------------------------------------------
+
+
+class _Model:
+    """The right-hand sides over real symbols, fixed constants substituted, ready to evaluate."""
+
+    def __init__(self, system: OdeSystem):
+        self.system = system
+        self.states = list(system.states)
+        self.n_eq = len(self.states)
+        # Real symbols make d|x|/dx = sign(x) instead of expressions in re() and im().
+        self.y: dict[str, list[sympy.Symbol]] = {}
+        sub = {}
+        for s in self.states:
+            syms = []
+            for k in range(system.orders[s]):
+                real = sympy.Symbol(f"_y_{s}_{k}", real=True)
+                sub[deriv_symbol(s, k)] = real
+                syms.append(real)
+            self.y[s] = syms
+        self.p = {n: sympy.Symbol(f"_p_{n}", real=True) for n in system.learnable}
+        sub.update({sympy.Symbol(n): self.p[n] for n in system.learnable})
+        sub.update({sympy.Symbol(n): sympy.Float(v) for n, v in system.fixed.items()})
+        self.sub = sub
+        self.f = [system.rhs[s].xreplace(sub) for s in self.states]
+        self.all_y = [y for s in self.states for y in self.y[s]]
+
+    def touched(self, name: str) -> set[str]:
+        """States whose equation holds the constant, and the states those equations read."""
+        p = self.p[name]
+        out = set()
+        for r, s in enumerate(self.states):
+            if self.f[r].has(p):
+                out.add(s)
+                out |= {t for t in self.states if any(self.f[r].has(y) for y in self.y[t])}
+        return out
+
+
+def _diff(expr: sympy.Expr, sym: sympy.Symbol) -> sympy.Expr:
+    d = sympy.diff(expr, sym)
+    # sign(x)' is a Dirac delta: zero at every generic point.
+    return d.replace(lambda e: isinstance(e, sympy.DiracDelta), lambda e: sympy.Integer(0))
+
+
+def _evaluate(exprs: list[sympy.Expr], args: list[sympy.Symbol], values: np.ndarray) -> np.ndarray:
+    """exprs at each row of values -> array (rows, len(exprs)); non-finite entries become nan."""
+    fn = sympy.lambdify(args, exprs, modules="numpy", dummify=True)
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        try:
+            out = fn(*values.T)
+        except (ArithmeticError, ValueError, TypeError, NameError, AttributeError):
+            return np.full((values.shape[0], len(exprs)), np.nan)
+    cols = []
+    for col in out:
+        a = np.asarray(col)
+        if np.iscomplexobj(a):
+            a = np.where(np.abs(a.imag) <= 1e-12 * (1 + np.abs(a.real)), a.real, np.nan)
+        a = np.broadcast_to(a.astype(float, copy=False), (values.shape[0],))
+        cols.append(a)
+    res = np.stack(cols, axis=1) if cols else np.zeros((values.shape[0], 0))
+    res[~np.isfinite(res)] = np.nan
+    return res
+
+
+_STATE_RANGES = ((0.2, 1.8, 24), (-1.8, 1.8, 24), (2.0, 8.0, 16))
+_PARAM_RANGES = ((0.5, 1.5), (0.1, 0.9), (1.5, 4.0))
+
+
+def _points(model: _Model, rng: np.random.Generator):
+    """Yield (values, args) sample sets: states over several ranges, one draw of the constants."""
+    n_y = len(model.all_y)
+    ys = np.concatenate([rng.uniform(lo, hi, size=(n, n_y)) for lo, hi, n in _STATE_RANGES])
+    for lo, hi in _PARAM_RANGES:
+        p = rng.uniform(lo, hi, size=len(model.p))
+        yield np.hstack([ys, np.broadcast_to(p, (ys.shape[0], len(p)))])
+
+
+def _stack(model: _Model, columns: list[list[sympy.Expr]], rng: np.random.Generator) -> np.ndarray | None:
+    """Evaluate columns[c][r] (one expression per equation r) at the sample points, stacking the
+    rows of all equations; None when too few points give finite values."""
+    args = model.all_y + list(model.p.values())
+    flat = [columns[c][r] for r in range(model.n_eq) for c in range(len(columns))]
+    need = max(2 * len(columns), 8)
+    for values in _points(model, rng):
+        vals = _evaluate(flat, args, values)  # (points, n_eq * n_cols)
+        vals = vals.reshape(values.shape[0], model.n_eq, len(columns))
+        ok = np.all(np.isfinite(vals), axis=(1, 2))
+        if ok.sum() >= need:
+            return vals[ok].reshape(-1, len(columns))
+    return None
+
+
+def _normalise(a: np.ndarray) -> np.ndarray:
+    norms = np.linalg.norm(a, axis=0)
+    norms[norms == 0] = 1.0
+    return a / norms
+
+
+def _null_space(a: np.ndarray) -> tuple[int, np.ndarray]:
+    """(rank, orthonormal basis of the null space as columns) of a (rows, cols)."""
+    if a.size == 0:
+        return 0, np.eye(a.shape[1])
+    _, s, vt = np.linalg.svd(a, full_matrices=True)
+    if s.size == 0 or s[0] == 0:
+        return 0, np.eye(a.shape[1])
+    rank = int(np.sum(s > _TOL * s[0]))
+    return rank, vt[rank:].T
+
+
+def _separability(model: _Model, present: list[str], rng):
+    separable = {n: False for n in model.p}
+    groups: dict[str, list[str]] = {}
+    if not present:
+        return 0, separable, groups
+    cols = [[_diff(f, model.p[n]) for f in model.f] for n in present]
+    jac = _stack(model, cols, rng)
+    if jac is None:
+        return None
+    rank, null = _null_space(_normalise(jac))
+    parent = {n: n for n in present}
+
+    def root(n):
+        while parent[n] != n:
+            n = parent[n]
+        return n
+
+    proj = null @ null.T
+    for i, a in enumerate(present):
+        separable[a] = bool(np.all(np.abs(null[i]) < 1e-6))
+        for j in range(i + 1, len(present)):
+            if abs(proj[i, j]) > 1e-8:
+                parent[root(present[j])] = root(a)
+    for a in present:
+        if not separable[a]:
+            groups[a] = [b for b in present if not separable[b] and root(b) == root(a)]
+    return rank, separable, groups
+
+
+def groups_rank(model: _Model, group: list[str], rng) -> int:
+    cols = [[_diff(f, model.p[n]) for f in model.f] for n in group]
+    jac = _stack(model, cols, rng)
+    return 0 if jac is None else _null_space(_normalise(jac))[0]
+
+
+@dataclass
+class _Symmetry:
+    f: list[sympy.Expr]
+    dependent: dict[str, set[str]]  # constant -> the states whose scale/offset move it
+    pinned: set[str]  # states whose scale no symmetry changes
+    offset_pinned: set[str]
+
+
+def _symmetries(model: _Model, present: list[str], f: list[sympy.Expr], rng) -> _Symmetry | None:
+    states = model.states
+    scale_cols, offset_cols = [], []
+    for s in states:
+        scale_cols.append([sum((y * _diff(f[r], y) for y in model.y[s]), sympy.Integer(0))
+                           - (f[r] if states[r] == s else 0) for r in range(model.n_eq)])
+        offset_cols.append([_diff(f[r], model.y[s][0]) for r in range(model.n_eq)])
+    j_cols = [[-_diff(fr, model.p[n]) for fr in f] for n in present]
+    m = _stack(model, scale_cols + offset_cols + j_cols, rng)
+    if m is None:
+        return None
+    n_s = len(states)
+    m = _normalise(m)
+    _, null = _null_space(m)
+    gen, dp = null[: 2 * n_s], null[2 * n_s:]
+    if present:
+        _, j_null = _null_space(m[:, 2 * n_s:])
+        dp = dp - j_null @ (j_null.T @ dp)  # directions J cannot see move nothing measurable
+    dependent: dict[str, set[str]] = {}
+    for i, n in enumerate(present):
+        moving = np.abs(dp[i]) > 1e-6
+        if moving.any():
+            movers = set()
+            for k in np.nonzero(moving)[0]:
+                for j in np.nonzero(np.abs(gen[:, k]) > 1e-6)[0]:
+                    movers.add((states[j % n_s], "scale" if j < n_s else "offset"))
+            dependent[n] = movers
+    pinned = {s for j, s in enumerate(states) if np.all(np.abs(gen[j]) < 1e-6)}
+    offset_pinned = {s for j, s in enumerate(states) if np.all(np.abs(gen[n_s + j]) < 1e-6)}
+    return _Symmetry(f, dependent, pinned, offset_pinned)
+
+
+def _moved(sym: _Symmetry, name: str) -> str:
+    movers = sym.dependent.get(name, set())
+    scaled = sorted({s for s, kind in movers if kind == "scale"})
+    shifted = sorted({s for s, kind in movers if kind == "offset"} - set(scaled))
+    parts = []
+    if scaled:
+        parts.append(_are(scaled) + " rescaled")
+    if shifted:
+        parts.append(f"the zero of {_are(shifted)} moved")
+    return " or ".join(parts) if parts else "the latent is rescaled"
+
+
+def _linearised(model: _Model, present: list[str], rng) -> _Symmetry | bool:
+    zero = {y: 0 for y in model.all_y}
+    f_lin = []
+    for fr in model.f:
+        try:
+            terms = [fr.xreplace(zero)] + [_diff(fr, y).xreplace(zero) * y for y in model.all_y]
+        except (ArithmeticError, ValueError, TypeError):
+            return False
+        lin = sympy.Add(*terms)
+        if lin.has(sympy.zoo, sympy.oo, -sympy.oo, sympy.nan):
+            return False
+        f_lin.append(lin)
+    sym = _symmetries(model, [n for n in present if any(fl.has(model.p[n]) for fl in f_lin)], f_lin, rng)
+    return False if sym is None else sym
+
+
+# --- naming the measurable combinations ------------------------------------------------------
+
+
+def _coefficients(system: OdeSystem, model: _Model) -> list[sympy.Expr] | None:
+    """The coefficients c_j(p) of f_r = sum_j c_j(p) * phi_j(y) over all equations, or None when
+    some right-hand side does not split into constant and state factors."""
+    state_syms = [deriv_symbol(s, k) for s in system.states for k in range(system.orders[s])]
+    learn = [sympy.Symbol(n) for n in system.learnable]
+    coeffs = []
+    for s in system.states:
+        expr = system.rhs[s]
+        if sympy.count_ops(expr) > 400:
+            return None
+        try:
+            expanded = sympy.expand(expr)
+        except (ArithmeticError, ValueError, TypeError, RecursionError):
+            return None
+        by_state: dict[sympy.Expr, sympy.Expr] = {}
+        for term in sympy.Add.make_args(expanded):
+            const, dep = term.as_independent(*state_syms, as_Add=False)
+            if dep.has(*learn):
+                return None
+            by_state[dep] = by_state.get(dep, sympy.Integer(0)) + const
+        coeffs += [c for c in by_state.values() if c.has(*learn)]
+    return coeffs
+
+
+def _clean(expr: sympy.Expr, learn: list[sympy.Symbol]) -> sympy.Expr:
+    """Drop numeric and fixed-constant factors and the sign: -9.81*k/m -> k/m."""
+    try:
+        expr = sympy.factor(expr) if sympy.count_ops(expr) < 60 else expr
+    except (ArithmeticError, ValueError, TypeError, sympy.PolynomialError):
+        pass
+    if expr.is_Mul:
+        _, expr = expr.as_independent(*learn, as_Add=False)
+    # 1/(C*R) reads better as C*R: the video measures either equally well.
+    numer, denom = expr.as_numer_denom()
+    if numer.is_Number and denom != 1:
+        expr = denom
+    return expr
+
+
+class _Printer(StrPrinter):
+    """sympy's str printer with positive terms first: sin(alpha) - mu*cos(alpha)."""
+
+    def _print_Add(self, expr, order=None):
+        terms = sorted(expr.args, key=lambda t: (t.could_extract_minus_sign(), sympy.default_sort_key(t)))
+        out = ""
+        for t in terms:
+            neg = t.could_extract_minus_sign()
+            body = self.parenthesize(-t if neg else t, precedence(expr))
+            out += (" - " if neg else " + ") + body if out else ("-" if neg else "") + body
+        return out
+
+
+def _distribute_sign(expr: sympy.Expr) -> sympy.Expr:
+    """-g*(a - b) -> g*(b - a), so a sign is carried inside a sum rather than in front."""
+    if expr.is_Mul:
+        coeff, rest = expr.as_coeff_Mul()
+        if coeff < 0:
+            factors = list(sympy.Mul.make_args(rest))
+            for i, f in enumerate(factors):
+                if f.is_Add:
+                    factors[i] = -f
+                    return sympy.Mul(-coeff, *factors, evaluate=False) if coeff != -1 else sympy.Mul(*factors, evaluate=False)
+    return expr
+
+
+def _show(expr: sympy.Expr) -> str:
+    """The sign of a measurable combination is arbitrary: print the sign that reads best."""
+    printer = _Printer()
+    candidates = [printer.doprint(_distribute_sign(e)) for e in (expr, -expr)]
+    first = lambda t: len(re.split(r" [-+] ", t.lstrip("-"))[0])  # noqa: E731
+    return min(candidates, key=lambda t: (t.startswith("-"), t.count(" - "), len(t), first(t)))
+
+
+def _combination(group: list[str], coeffs: list[sympy.Expr] | None, model: _Model, rank_of_group: int) -> str:
+    names = _join(group)
+    if coeffs is None:
+        return f"{rank_of_group} combination{'s' if rank_of_group != 1 else ''} of {names}"
+    learn = [sympy.Symbol(n) for n in model.system.learnable]
+    group_syms = [sympy.Symbol(n) for n in group]
+    seen: list[sympy.Expr] = []
+    for c in coeffs:
+        if c.has(*group_syms):
+            cleaned = _clean(c, learn)
+            if not any(sympy.simplify(cleaned - s) == 0 or sympy.simplify(cleaned * s) == 1 for s in seen):
+                seen.append(cleaned)
+    if not seen:
+        return f"{rank_of_group} combination{'s' if rank_of_group != 1 else ''} of {names}"
+    return ", ".join(_show(s) for s in seen)
