@@ -1,5 +1,11 @@
 """fitode: the unknown constants of a known ODE, from a video."""
+import os as _os
+
 __version__ = "0.1.0"
+
+# FFmpeg inside OpenCV prints its own errors on stderr for unreadable files; fitode reports
+# those itself in one line, so silence it before any module opens a video.
+_os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
 
 def fit(*args, **kwargs):
