@@ -35,10 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import sympy
-from sympy.printing.precedence import precedence
-from sympy.printing.str import StrPrinter
 
-from .system import OdeSystem, deriv_symbol
+from .system import OdeSystem, deriv_symbol, format_expr
 
 SCALES = ("free", "dependent", "free-small-amplitude")
 
@@ -108,7 +106,27 @@ def analyse(system: OdeSystem, *, seed: int = _SEED) -> IdentifiabilityReport:
     rank, separable, groups = sep
 
     full = _symmetries(model, present, model.f, rng)
-    linear = None
+    order = model.states.index
+    # Why a state's scale cannot change: a known constant (g) sets it, fixed numbers set it even in
+    # the linear part, or nonlinear terms set it (then only the small-amplitude motion is free).
+    by_known: set[str] = set()
+    by_numbers: set[str] = set()
+    linear: _Symmetry | bool = False
+    if full is not None and full.pinned:
+        if system.fixed:
+            freed_system = OdeSystem(system.states, system.orders, system.rhs, {},
+                                     system.learnable + tuple(system.fixed), system.text)
+            freed_model = _Model(freed_system)
+            freed_present = [n for n in freed_system.learnable if any(f.has(freed_model.p[n]) for f in freed_model.f)]
+            freed = _symmetries(freed_model, freed_present, freed_model.f, rng)
+            if freed is not None:
+                by_known = full.pinned - freed.pinned
+        rest = full.pinned - by_known
+        if rest:
+            linear = _linearised(model, present, rng)
+            if linear is not False:
+                by_numbers = rest & linear.pinned
+    by_nonlinear = (full.pinned - by_known - by_numbers) if full is not None else set()
 
     decomp = _coefficients(system, model)
     reports = []
@@ -128,52 +146,45 @@ def analyse(system: OdeSystem, *, seed: int = _SEED) -> IdentifiabilityReport:
             scale, why = "dependent", "the scale analysis could not evaluate the equation"
         elif name in full.dependent:
             scale = "dependent"
-            why = (f"its value changes when {_moved(full, name)}, so it comes out in the latent's "
+            why = (f"its value changes when {_moved(full, name, order)}, so it comes out in the latent's "
                    "units (calibrate the latent or fix it)")
         elif not (touched & full.pinned):
             scale = "free"
-            why = f"its value does not change when {_are(sorted(touched, key=model.states.index))} rescaled"
+            why = f"its value does not change when {_are(sorted(touched, key=order))} rescaled"
+        elif not (touched & by_nonlinear):
+            pinned = sorted(touched & full.pinned, key=order)
+            scale = "free"
+            why = (f"{_fixed_terms(system, set(pinned))} the scale of "
+                   f"{_join(pinned)}, and no other rescaling changes its value")
         else:
-            pinned_set = touched & full.pinned
-            pinned = _join(sorted(pinned_set, key=model.states.index))
-            if linear is None:
-                linear = _linearised(model, present, rng)
-            if linear is not False and pinned_set <= linear.pinned:
-                # Even the linear part pins the scale: fixed terms (g, a number) set the latent's
-                # units at every amplitude, so the constant is measured in those units.
-                scale = "free"
-                why = (f"the fixed terms of the equation ({_fixed_terms(system, pinned_set)}) set the scale "
-                       f"of {pinned}, and no rescaling changes its value")
-            elif linear is False:
+            pinned_list = sorted(touched & by_nonlinear, key=order)
+            pinned = _join(pinned_list)
+            if linear is False:
                 scale = "dependent"
                 why = (f"the nonlinear terms fix the scale of {pinned}, and the equations have no "
                        "linearisation at 0 to test the small-amplitude case")
             elif not any(fl.has(model.p[name]) for fl in linear.f):
                 scale = "dependent"
-                why = (f"appears only in nonlinear terms, which tie its value to the scale of {pinned}")
+                why = f"appears only in nonlinear terms, which tie its value to the scale of {pinned}"
             elif name in linear.dependent:
                 scale = "dependent"
                 why = (f"the nonlinear terms fix the scale of {pinned}; even in the small-amplitude "
-                       f"(linearised) equation its value changes when {_moved(linear, name)}")
+                       f"(linearised) equation its value changes when {_moved(linear, name, order)}")
             else:
                 scale = "free-small-amplitude"
                 why = (f"the nonlinear terms fix the scale of {pinned} only at large amplitude; in the "
                        f"small-amplitude (linearised) equation its value does not change when "
-                       f"{_are(sorted(pinned_set, key=model.states.index))} rescaled")
+                       f"{_are(pinned_list)} rescaled")
         reports.append(ConstantReport(name, separable[name], combination, scale, sep_text + why))
 
     notes = []
-    if full is not None and full.pinned:
-        if linear is None:
-            linear = _linearised(model, present, rng)
-        by_fixed = [s for s in model.states if s in full.pinned and linear is not False and s in linear.pinned]
-        by_nonlinear = [s for s in model.states if s in full.pinned and s not in by_fixed]
-        if by_nonlinear:
-            notes.append(f"the nonlinear terms fix the scale of {_join(by_nonlinear)}: at large amplitude the "
-                         "encoder must learn it in the equation's own units")
-        if by_fixed:
-            notes.append(f"the fixed terms ({_fixed_terms(system, set(by_fixed))}) set the scale of "
-                         f"{_join(by_fixed)}: the encoder must learn it in the equation's own units")
+    if by_nonlinear:
+        notes.append(f"the nonlinear terms fix the scale of {_join(sorted(by_nonlinear, key=order))}: at large "
+                     "amplitude the encoder must learn it in the equation's own units")
+    if by_known | by_numbers:
+        pinned = sorted(by_known | by_numbers, key=order)
+        notes.append(f"{_fixed_terms(system, set(pinned))} the scale of "
+                     f"{_join(pinned)}: the encoder must learn it in the equation's own units")
     return IdentifiabilityReport(tuple(reports), rank, tuple(notes))
 
 
@@ -183,8 +194,11 @@ def _are(items) -> str:
 
 
 def _fixed_terms(system: OdeSystem, states: set[str]) -> str:
+    """The fixed constants in these states' equations, as subject and verb of a sentence."""
     used = [n for n in system.fixed if any(system.rhs[s].has(sympy.Symbol(n)) for s in states)]
-    return ", ".join(used) if used else "its numbers"
+    if not used:
+        return "the equation's fixed numbers set"
+    return f"the known constant {used[0]} sets" if len(used) == 1 else f"the known constants {_join(used)} set"
 
 
 def _join(items) -> str:
@@ -379,10 +393,10 @@ def _symmetries(model: _Model, present: list[str], f: list[sympy.Expr], rng) -> 
     return _Symmetry(f, dependent, pinned, offset_pinned)
 
 
-def _moved(sym: _Symmetry, name: str) -> str:
+def _moved(sym: _Symmetry, name: str, order) -> str:
     movers = sym.dependent.get(name, set())
-    scaled = sorted({s for s, kind in movers if kind == "scale"})
-    shifted = sorted({s for s, kind in movers if kind == "offset"} - set(scaled))
+    scaled = sorted({s for s, kind in movers if kind == "scale"}, key=order)
+    shifted = sorted({s for s, kind in movers if kind == "offset"} - set(scaled), key=order)
     parts = []
     if scaled:
         parts.append(_are(scaled) + " rescaled")
@@ -449,19 +463,6 @@ def _clean(expr: sympy.Expr, learn: list[sympy.Symbol]) -> sympy.Expr:
     return expr
 
 
-class _Printer(StrPrinter):
-    """sympy's str printer with positive terms first: sin(alpha) - mu*cos(alpha)."""
-
-    def _print_Add(self, expr, order=None):
-        terms = sorted(expr.args, key=lambda t: (t.could_extract_minus_sign(), sympy.default_sort_key(t)))
-        out = ""
-        for t in terms:
-            neg = t.could_extract_minus_sign()
-            body = self.parenthesize(-t if neg else t, precedence(expr))
-            out += (" - " if neg else " + ") + body if out else ("-" if neg else "") + body
-        return out
-
-
 def _distribute_sign(expr: sympy.Expr) -> sympy.Expr:
     """-g*(a - b) -> g*(b - a), so a sign is carried inside a sum rather than in front."""
     if expr.is_Mul:
@@ -477,8 +478,7 @@ def _distribute_sign(expr: sympy.Expr) -> sympy.Expr:
 
 def _show(expr: sympy.Expr) -> str:
     """The sign of a measurable combination is arbitrary: print the sign that reads best."""
-    printer = _Printer()
-    candidates = [printer.doprint(_distribute_sign(e)) for e in (expr, -expr)]
+    candidates = [format_expr(_distribute_sign(e)) for e in (expr, -expr)]
     first = lambda t: len(re.split(r" [-+] ", t.lstrip("-"))[0])  # noqa: E731
     return min(candidates, key=lambda t: (t.startswith("-"), t.count(" - "), len(t), first(t)))
 

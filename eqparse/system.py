@@ -4,6 +4,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import sympy
+from sympy.printing.precedence import precedence
+from sympy.printing.str import StrPrinter
 
 
 def deriv_symbol(name: str, k: int) -> sympy.Symbol:
@@ -13,6 +15,24 @@ def deriv_symbol(name: str, k: int) -> sympy.Symbol:
     wrote them; codegen maps these symbols onto slices of the state tensor.
     """
     return sympy.Symbol(name + "'" * k)
+
+
+class _Printer(StrPrinter):
+    """sympy's str printer, with the positive terms of a sum first: sin(a) - mu*cos(a)."""
+
+    def _print_Add(self, expr, order=None):
+        terms = sorted(expr.args, key=lambda t: (t.could_extract_minus_sign(), sympy.default_sort_key(t)))
+        out = ""
+        for t in terms:
+            neg = t.could_extract_minus_sign()
+            body = self.parenthesize(-t if neg else t, precedence(expr))
+            out += (" - " if neg else " + ") + body if out else ("-" if neg else "") + body
+        return out
+
+
+def format_expr(expr: sympy.Expr) -> str:
+    """Readable text for an expression (sympy's str syntax, positive terms first)."""
+    return _Printer().doprint(expr)
 
 
 @dataclass(frozen=True)
@@ -57,4 +77,4 @@ class OdeSystem:
 
     def normal_form(self) -> list[str]:
         """One line per state, e.g. "x'' = -g*sin(x)/L - z*x'"."""
-        return [f"{s}{chr(39) * self.orders[s]} = {sympy.sstr(self.rhs[s])}" for s in self.states]
+        return [f"{s}{chr(39) * self.orders[s]} = {format_expr(self.rhs[s])}" for s in self.states]
