@@ -278,6 +278,13 @@ def test_out_dir_must_be_a_batch_folder(tmp_path):
         run_batch(m, other, runner=RUNNER, log=None)
     res = run_batch(m, runner=RUNNER, log=None, workers=1)  # default: beside the manifest
     assert res.out_dir == tmp_path / "videos-results" and (res.out_dir / "001-a" / "result.json").is_file()
+    # a second batch on the same folder while one runs is refused
+    import fcntl
+    with open(res.out_dir / ".lock", "a+") as held:
+        fcntl.flock(held.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(FitodeError, match="another fitode batch is writing"):
+            run_batch(m, runner=RUNNER, log=None, workers=1)
+    assert run_batch(m, runner=RUNNER, log=None, workers=1).reused == ["001-a"]  # released
 
 
 class _InterruptAfterOne:

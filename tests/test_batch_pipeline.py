@@ -62,21 +62,23 @@ def read_csv(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(f))
 
 
-def test_local_batch_matches_each_result_and_reruns_only_the_broken_job(videos, tmp_path, capsys):
-    folder = tmp_path / "data"
-    folder.mkdir()
+@pytest.fixture(scope="module")
+def local_batch(videos, tmp_path_factory):
+    """The local batch of three good videos and a corrupt one, run once through the command line."""
+    folder = tmp_path_factory.mktemp("batch-local")
     for name in GAMMAS:
         os.link(videos / f"{name}.mp4", folder / f"{name}.mp4")
     (folder / "broken.mp4").write_bytes(b"this is not a video" * 50)
     manifest = write_manifest(folder, ["a", "b", "broken", "c"], "videos.csv")
-    out = tmp_path / "out"
-
-    code = main(["batch", str(manifest), "--out", str(out), "--workers", "2", *TINY])
-    captured = capsys.readouterr()
-    assert code == 1, captured.err
-    assert "failed: 003-broken:" in captured.err
-
+    out = folder / "out"
+    code = main(["batch", str(manifest), "--out", str(out), "--workers", "2", "--quiet", *TINY])
     rows = {r["name"]: r for r in read_csv(out / "summary.csv")}
+    return {"folder": folder, "manifest": manifest, "out": out, "code": code, "rows": rows}
+
+
+def test_local_batch_matches_each_result_and_reruns_only_the_broken_job(local_batch, capsys):
+    folder, manifest, out, rows = (local_batch[k] for k in ("folder", "manifest", "out", "rows"))
+    assert local_batch["code"] == 1  # a job failed
     assert list(rows) == ["001-a", "002-b", "003-broken", "004-c"]
     assert rows["003-broken"]["status"] == "failed" and rows["003-broken"]["error"]
     assert not (out / "003-broken" / "result.json").exists() or \
@@ -120,23 +122,23 @@ ray_missing = importlib.util.find_spec("ray") is None
 
 
 @pytest.mark.skipif(ray_missing, reason="Ray is not installed (pip install 'fitode[ray]')")
-def test_ray_executor_gives_the_same_estimates_as_local(videos, tmp_path):
-    """A private local Ray instance (2 CPUs, no dashboard, loopback only) runs the same batch."""
-    manifest = write_manifest(videos, list(GAMMAS), "good.csv")
-    local, on_ray = tmp_path / "local", tmp_path / "ray"
-    assert main(["batch", str(manifest), "--out", str(local), "--workers", "2", "--quiet", *TINY]) == 0
+def test_ray_executor_gives_the_same_estimates_as_local(local_batch):
+    """A private local Ray instance (2 CPUs, no dashboard, loopback only) runs the same jobs and gets
+    the same numbers as the local pool did (same seeds, one thread per job)."""
+    folder = local_batch["folder"]
+    manifest = write_manifest(folder, list(GAMMAS), "good.csv")
+    on_ray = folder / "on-ray"
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "fitode", "batch", str(manifest), "--out", str(on_ray),
                            "--executor", "ray", "--workers", "2", "--quiet", *TINY],
                           capture_output=True, text=True, timeout=300)
     wall = time.perf_counter() - t0
     assert proc.returncode == 0, proc.stderr[-2000:]
-    a = {r["name"]: r for r in read_csv(local / "summary.csv")}
-    b = {r["name"]: r for r in read_csv(on_ray / "summary.csv")}
-    assert list(a) == list(b) == ["001-a", "002-b", "003-c"]
-    for name in a:
-        assert b[name]["status"] == "complete"
-        assert float(b[name]["gamma"]) == pytest.approx(float(a[name]["gamma"]), rel=1e-9, abs=1e-12)
-        ray_job = json.loads((on_ray / name / "job.json").read_text())
-        assert ray_job["pid"] != os.getpid()
-    print(f"ray batch of {len(a)} jobs: {wall:.1f} s wall (subprocess, Ray start included)")
+    local = {r["video"]: r for r in local_batch["rows"].values()}
+    rows = read_csv(on_ray / "summary.csv")
+    assert [r["name"] for r in rows] == ["001-a", "002-b", "003-c"]
+    for r in rows:
+        assert r["status"] == "complete"
+        assert float(r["gamma"]) == pytest.approx(float(local[r["video"]]["gamma"]), rel=1e-9, abs=1e-12)
+        assert json.loads((on_ray / r["name"] / "job.json").read_text())["pid"] != os.getpid()
+    print(f"ray batch of {len(rows)} jobs: {wall:.1f} s wall (subprocess, Ray start included)")

@@ -9,6 +9,7 @@ again, into a cleared folder.
 from __future__ import annotations
 
 import json
+import os
 import time
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
@@ -23,6 +24,7 @@ from .manifest import Job, Manifest, load_manifest
 from .summary import SummaryRow, aggregate, atomic_write_text, counts, write_summary
 
 MARKER = "batch.json"
+LOCK = ".lock"
 JOB_FILE = "job.json"
 
 
@@ -71,8 +73,17 @@ def run_batch(manifest: str | Path | Manifest, out: str | Path | None = None, *,
     man = manifest if isinstance(manifest, Manifest) else load_manifest(manifest, defaults)
     out_dir = Path(out) if out is not None else default_out_dir(man.path)
     say = log or (lambda *_: None)
-    _claim(out_dir, man, dry_run)
+    lock = _claim(out_dir, man, dry_run)
+    try:
+        return _run(man, out_dir, say, executor=executor, workers=workers, address=address, force=force,
+                    retry_failed=retry_failed, progress=progress, runner=runner, dry_run=dry_run, t0=t0)
+    finally:
+        if lock is not None:
+            lock.close()
 
+
+def _run(man: Manifest, out_dir: Path, say, *, executor, workers, address, force, retry_failed, progress,
+         runner, dry_run, t0) -> BatchResult:
     rows: dict[str, SummaryRow] = {}
     to_run: list[Job] = []
     for job in man.jobs:
@@ -142,8 +153,12 @@ def run_batch(manifest: str | Path | Manifest, out: str | Path | None = None, *,
 
 # --- planning -----------------------------------------------------------------------------
 
-def _claim(out_dir: Path, man: Manifest, dry_run: bool) -> None:
-    """The out dir is the batch's: new, empty, or one it made before (batch.json says so)."""
+def _claim(out_dir: Path, man: Manifest, dry_run: bool):
+    """The out dir is the batch's: new, empty, or one it made before (batch.json says so).
+
+    Returns an open lock file (None for a dry run): two batches writing one folder would each
+    clear the other's running jobs.
+    """
     marker = out_dir / MARKER
     if out_dir.exists() and not out_dir.is_dir():
         raise FitodeError(f"--out {out_dir} is a file")
@@ -151,8 +166,9 @@ def _claim(out_dir: Path, man: Manifest, dry_run: bool) -> None:
         raise FitodeError(f"{out_dir} is not empty and is not a fitode batch folder (no {MARKER}); "
                           "choose another --out")
     if dry_run:
-        return
+        return None
     out_dir.mkdir(parents=True, exist_ok=True)
+    lock = _lock(out_dir / LOCK)
     info = {"manifest": str(man.path), "created": _now(), "jobs": [j.name for j in man.jobs]}
     if marker.is_file():
         try:
@@ -160,6 +176,28 @@ def _claim(out_dir: Path, man: Manifest, dry_run: bool) -> None:
         except (OSError, ValueError):
             pass
     atomic_write_text(marker, json.dumps(info, indent=1))
+    return lock
+
+
+def _lock(path: Path):
+    handle = open(path, "a+")
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock
+        return handle
+    try:
+        fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        handle.seek(0)
+        holder = handle.read().strip()
+        handle.close()
+        raise FitodeError(f"another fitode batch is writing {path.parent}"
+                          + (f" (pid {holder})" if holder else "") + "; wait for it or choose another --out") from None
+    handle.seek(0)
+    handle.truncate()
+    handle.write(str(os.getpid()))
+    handle.flush()
+    return handle
 
 
 def _plan_row(job: Job, out_dir: Path, man: Manifest) -> tuple[SummaryRow, bool]:
