@@ -124,7 +124,7 @@ def fit_constants(integrator: str, substeps: int, init: str, context: int | None
 
 def bias_table(quick: bool = False) -> list[dict]:
     configs = [("official one-step", "symplectic", 1, "backward", None, 3)]
-    inits = [("backward", None), ("difference", 3), ("difference", 5), ("learnable", None), ("residual", None)]
+    inits = [("backward", None), ("difference", 3), ("difference", 5), ("learnable", None)]
     if quick:
         inits = [("backward", None), ("difference", 5), ("learnable", None)]
     for integ in ("euler", "symplectic", "rk4"):
@@ -146,7 +146,7 @@ def noise_table(noises=(0.01, 0.03), seeds=(0, 1, 2)) -> list[dict]:
     rows = []
     for noise in noises:
         for integ, sub in (("rk4", 1), ("rk4", 4)):
-            for init, ctx in (("difference", 3), ("difference", 5), ("learnable", None), ("residual", None)):
+            for init, ctx in (("difference", 3), ("difference", 5), ("learnable", None)):
                 fits = [fit_constants(integ, sub, init, ctx, noise=noise, seed=s) for s in seeds]
                 g0 = np.array([f["g0"] for f in fits])
                 g1 = np.array([f["g1"] for f in fits])

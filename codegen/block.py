@@ -10,9 +10,6 @@ from fitode.eqparse import OdeSystem, ParamSpec
 
 from .constants import Reparam, reparam_for
 from .differences import InitScheme, init_scheme
-
-# Initial-state modes that keep per-window parameters.
-PER_WINDOW = ("learnable", "residual")
 from .errors import NonFiniteError, ParameterError
 from .guard import explain_nonfinite
 from .integrators import get_integrator
@@ -39,9 +36,7 @@ class PhysicsBlock(nn.Module):
     init: "difference" (centred finite differences), "backward" (the paper's one-sided ones) or
         "learnable" (per-window initial derivatives, initialised by the centred differences the
         first time a window is seen; needs n_windows, and window_index in forward: without it
-        the block falls back to the differences), or "residual" (the centred differences plus a
-        learnable per-window correction that starts at zero: the estimate follows the encoder
-        as it changes, the correction removes the stencil's bias; same needs as "learnable").
+        the block falls back to the differences).
     context: number of leading frames used for the initial state (default by init; see
         fitode.codegen.differences).
     dtype: dtype of the constants' parameters and of the fixed constants.
@@ -86,9 +81,9 @@ class PhysicsBlock(nn.Module):
         self._deriv_slots = list(lay.derivative_slots)
         self._weights_cache: dict = {}
         self.n_windows = n_windows
-        if init in PER_WINDOW:
+        if init == "learnable":
             if not n_windows or n_windows < 1:
-                raise ParameterError(f"init={init!r} needs n_windows (the number of distinct windows)")
+                raise ParameterError("init='learnable' needs n_windows (the number of distinct windows)")
             self.initial_derivatives = nn.Parameter(torch.zeros(n_windows, len(self._deriv_slots), dtype=dtype))
             self.register_buffer("initialised", torch.zeros(n_windows, dtype=torch.bool))
             # Learnable slots come after the encoder's values in one concatenated source row.
@@ -158,18 +153,18 @@ class PhysicsBlock(nn.Module):
     def lr_scale(self, name: str) -> float:
         """Multiplier of the base lr for constant `name` (fitode.codegen.constants has the table);
         "initial_derivatives" -> 1."""
-        if name == "initial_derivatives" and self.init in PER_WINDOW:
+        if name == "initial_derivatives" and self.init == "learnable":
             return 1.0
         self._param(name)
         return self._reparams[name].lr_scale(self._scale_values[name])
 
     def param_groups(self, lr: float = 1.0) -> list[dict]:
         """Optimizer groups: one per learnable constant ({"params", "lr", "name", "kind":
-        "constant"}), plus, with init="learnable" or "residual", one {"name":
-        "initial_derivatives", "kind": "initial_state"} group holding the per-window values."""
+        "constant"}), plus, with init="learnable", one {"name": "initial_derivatives", "kind":
+        "initial_state"} group holding the per-window derivatives."""
         groups = [{"params": [self._param(n)], "lr": lr * self.lr_scale(n), "name": n, "kind": "constant"}
                   for n in self._reparams]
-        if self.init in PER_WINDOW:
+        if self.init == "learnable":
             groups.append({"params": [self.initial_derivatives], "lr": lr, "name": "initial_derivatives",
                            "kind": "initial_state"})
         return groups
@@ -210,17 +205,13 @@ class PhysicsBlock(nn.Module):
                       window_index: torch.Tensor | None = None) -> torch.Tensor:
         """The state at the anchor frame for each window, (B, n_slots); z_head is (B, n_context, dim)."""
         y0 = self.difference_state(z_head, dt)
-        if self.init not in PER_WINDOW:
+        if self.init != "learnable":
             return y0
         if window_index is None:  # e.g. a rollout of the whole video: no per-window values apply
             return y0
         idx = window_index.reshape(-1).to(self.initial_derivatives.device)
         if idx.numel() != z_head.shape[0]:
             raise ValueError(f"window_index has {idx.numel()} entries for {z_head.shape[0]} windows")
-        if self.init == "residual":
-            delta = self.initial_derivatives[idx].to(device=z_head.device, dtype=z_head.dtype)
-            zeros = torch.zeros_like(y0[:, self._value_slots])
-            return y0 + torch.cat([zeros, delta], dim=-1)[:, self._learnable_perm]
         new = ~self.initialised[idx]
         if new.any():
             self.init_from(z_head[new.to(z_head.device)], idx[new], dt)

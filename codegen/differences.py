@@ -23,10 +23,6 @@ Modes:
   short context leaves more frames to the loss); the value z_c still comes from the encoder.
   On the exact trajectory it removes the initial-state bias entirely (RK4 x4: g0 -0.00 %,
   g1 -0.00 %); with 1 % noise on the latents it stays the least biased (g1 +0.2..0.4 %).
-- "residual": the "difference" stencil plus a per-window learnable correction that starts at
-  zero. Unlike "learnable", whose values are frozen snapshots of the encoder at the step a window
-  was first seen, the estimate keeps following the encoder while it trains; the correction only
-  has to learn the stencil's bias.
 
 Whatever the mode, frames before the anchor are not predicted: the block copies them from the
 input (they are the rollout's inputs); frames after it are the rollout.
@@ -40,7 +36,7 @@ from sympy.calculus.finite_diff import finite_diff_weights
 
 from .errors import ParameterError
 
-INIT_MODES = ("difference", "backward", "learnable", "residual")
+INIT_MODES = ("difference", "backward", "learnable")
 
 
 @dataclass(frozen=True)
@@ -64,7 +60,7 @@ def init_scheme(max_order: int, mode: str = "difference", context: int | None = 
         if mode == "backward" or max_order == 1:
             context = max_order
         else:
-            wanted = max_order + 2 if mode in ("difference", "residual") else max_order
+            wanted = max_order + 2 if mode == "difference" else max_order
             context = wanted if wanted % 2 else wanted + 1
     if context < max_order:
         raise ParameterError(f"{context} context frame(s) cannot give the {max_order - 1} derivative(s) "
@@ -95,10 +91,6 @@ def describe_init(layout, mode: str, context: int | None = None) -> str:
         expr = sum(w * z[j] for j, w in enumerate(scheme.exact[k])) / dt ** k
         order = scheme.error_order[k]
         err = "exact" if k == 0 else ("error O(dt)" if order == 1 else f"error O(dt^{order})")
-        extra = ""
-        if k and mode == "learnable":
-            extra = ", then learned per window"
-        elif k and mode == "residual":
-            extra = " + a learned per-window correction"
+        extra = ", then learned per window" if mode == "learnable" and k else ""
         lines.append(f"  {'z' + chr(39) * k:<{width}} = {sympy.sstr(sympy.together(expr))}   ({err}{extra})")
     return "\n".join(lines)

@@ -29,8 +29,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     gen.add_argument("--integrator", default="rk4", choices=["rk4", "symplectic", "euler", "paper"],
                      help="integrator whose step is described (default rk4; paper = symplectic)")
     gen.add_argument("--substeps", type=_positive_int, default=1, metavar="N", help="sub-steps per frame (default 1)")
-    gen.add_argument("--init", default="difference",
-                     choices=["difference", "backward", "learnable", "residual"],
+    gen.add_argument("--init", default="difference", choices=["difference", "backward", "learnable"],
                      help="how the initial state is built from the first frames (default difference)")
     gen.add_argument("--context", type=_positive_int, metavar="N",
                      help="frames used for the initial state (default: by --init)")

@@ -299,23 +299,3 @@ def test_block_pickles_and_copies():
     for clone in (pickle.loads(pickle.dumps(block)), copy.deepcopy(block)):
         torch.testing.assert_close(clone(z, 20, 0.2, window_index=idx), out)
         assert clone.constants()["g0"].item() == 3.0
-
-
-def test_residual_init_starts_at_the_differences_and_learns_a_correction():
-    z = _damped_windows()
-    block = _block(init="residual", n_windows=8, substeps=2)
-    plain = _block(init="difference", substeps=2)
-    assert block.n_context == plain.n_context == 5
-    idx = torch.arange(8)
-    out = block(z[:, :5], 20, 0.2, window_index=idx)
-    torch.testing.assert_close(out, plain(z[:, :5], 20, 0.2))  # the correction starts at zero
-    # the estimate follows the frames (unlike init="learnable", which keeps its first snapshot)
-    torch.testing.assert_close(block(2 * z[:, :5], 20, 0.2, window_index=idx), 2 * out)
-    out.pow(2).sum().backward()
-    assert block.initial_derivatives.grad.abs().min() > 0
-    with torch.no_grad():
-        block.initial_derivatives[3, 0] = 0.5
-    moved = block(z[:, :5], 20, 0.2, window_index=idx)
-    assert (moved[3, 3:] - out[3, 3:]).abs().max() > 0.01
-    torch.testing.assert_close(moved[[0, 1, 2, 4]], out[[0, 1, 2, 4]].detach())
-    assert [g["name"] for g in block.param_groups()][-1] == "initial_derivatives"
