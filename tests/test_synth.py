@@ -168,6 +168,28 @@ def test_render_equation_explicit_mapping_pendulum_angle():
     assert v.meta["fixed"]["g"] == pytest.approx(9.80665)
 
 
+def _shipped():
+    from fitode.eqfile import list_systems
+
+    return list_systems()
+
+
+@pytest.mark.parametrize("name", _shipped())
+def test_every_shipped_equation_renders(name):
+    from fitode.eqfile import load_system
+
+    spec = load_system(name)
+    ode = spec.parse()
+    consts = {k: (p.init if p.init is not None else 1.0) for k, p in spec.parameters.items()}
+    y0 = {s: 0.5 + 0.3 * i for i, s in enumerate(ode.states)}  # distinct: the two bodies must not coincide
+    for mode in synth.MODES:
+        v = synth.render_equation(name, constants=consts, y0=y0, n_frames=40, dt=0.025, mode=mode, size=24)
+        assert v.frames.shape == (40, 24, 24 * ode.dim) and np.all(np.isfinite(v.frames))
+        assert v.latent.shape == (40, ode.dim) and np.ptp(v.latent) > 0
+        assert v.meta["system"] == name and set(v.truth) == set(ode.learnable)
+        assert v.frames.min() >= 0 and v.frames.max() <= 1
+
+
 @pytest.mark.parametrize("constants,y0,match", [({"k": 1.0}, {"x": 1.0}, "constant"),
                                                 ({"k": 1.0, "c": 0.1}, {"y": 1.0}, "not in the state"),
                                                 ({"k": 1.0, "c": 0.1}, {"x'": 1.0}, "initial value"),

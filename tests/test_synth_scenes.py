@@ -32,6 +32,17 @@ def test_scene_frames_truth_and_determinism(name, tmp_path):
     assert rec["settings"]["physical"] and len(rec["latent"]) == 15
 
 
+@pytest.mark.parametrize("name", list(synth.SCENES))
+def test_scene_equation_is_the_shipped_files(name):
+    from fitode.eqfile import load_system
+
+    v = synth.scene(name, duration=0.05, size=(40, 64))
+    spec = load_system(v.meta["system"])
+    ode = spec.parse()
+    assert spec.equation.strip() == v.equation
+    assert set(v.truth) == set(ode.learnable) and v.latent_names == ode.states
+
+
 def test_pendulum_obeys_the_nonlinear_equation():
     v = synth.scene("pendulum", 0.45, duration=1.5, size=(90, 160), theta0_deg=40.0)
     th, om = v.state[:, 0], v.state[:, 1]
@@ -59,7 +70,8 @@ def test_torricelli_level_follows_sqrt_law():
 def test_sliding_block_acceleration(alpha):
     v = synth.scene("sliding_block", alpha, size=(90, 160))
     a = G * (np.sin(np.radians(alpha)) - 0.21 * np.cos(np.radians(alpha)))
-    assert v.truth == {"a": pytest.approx(a)}
+    assert v.truth == {"alpha": pytest.approx(np.radians(alpha)), "mu": 0.21}
+    assert v.meta["physical"]["a"] == pytest.approx(a)
     s = v.latent[:, 0]
     np.testing.assert_allclose(np.diff(s, 2) / v.dt ** 2, a, rtol=1e-6)
     # the default lasts the whole slide: the block ends near the bottom of the 1 m ramp

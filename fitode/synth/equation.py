@@ -11,10 +11,9 @@ from fitode.synth.trajectory import simulate_system
 from fitode.synth.video import SynthVideo
 
 
-def resolve_system(system_or_text, const: Mapping[str, float] | None = None):
-    """(OdeSystem, shipped name or None) from a shipped system name, equation text or an OdeSystem.
-
-    Values in `const` for known constants (g, or a shipped file's fixed constants) fix them."""
+def resolve_system(system_or_text):
+    """(OdeSystem, shipped name or None) from a shipped system name, equation text or an OdeSystem."""
+    from fitode.eqfile import load_system
     from fitode.eqparse import OdeSystem, parse
 
     if isinstance(system_or_text, OdeSystem):
@@ -22,16 +21,7 @@ def resolve_system(system_or_text, const: Mapping[str, float] | None = None):
     text = str(system_or_text).strip()
     if "=" in text:
         return parse(text), None
-    try:
-        from fitode import eqfile
-    except ImportError:  # pragma: no cover - eqfile ships with fitode
-        raise FitodeError(f"'{text}' is not an equation and no equation files are available") from None
-    if hasattr(eqfile, "resolve"):
-        ode, _spec = eqfile.resolve(eq=None, eq_file=None, system=text, const=None, free=())
-        return ode, text
-    spec = eqfile.load_system(text)
-    ode = getattr(spec, "system", None) or parse(spec.equation)
-    return ode, text
+    return load_system(text).parse(), text
 
 
 def render_equation(system_name_or_text, *, constants: Mapping[str, float],

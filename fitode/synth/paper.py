@@ -60,7 +60,7 @@ def paper_video(kind: str = "intensity", *, n_frames: int = 270, dt: float = 0.2
     z, zdot = damped_oscillator(t, g0, g1, z0, v0)
     frames = render_signal(z, kind, size=size, seed=seed, max_angle=max_angle, ss=ss, noise=noise)
     meta = {
-        "generator": "paper", "kind": kind, "seed": seed, "size": size, "n_frames": n_frames,
+        "generator": "paper", "kind": kind, "system": "damped_oscillator", "seed": seed, "size": size, "n_frames": n_frames,
         "dt": dt, "z0": z0, "v0": v0, "noise": noise, "supersampling": ss,
         "mapping": mapping_text(kind, max_angle),
     }

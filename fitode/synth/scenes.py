@@ -11,15 +11,19 @@ The dynamics are the physics, not a fit target's approximation:
   project's RK4 at 20 sub-steps per frame; L = 0.45, 0.9, 1.5 m; zeta = 0.05 /s.
 - torricelli: h' = -k sqrt(h) in metres and seconds, exact: sqrt(h) = sqrt(h0) - k t / 2;
   a floating ball marks the level; k = 0.0095, 0.0128, 0.0162 m^0.5/s.
-- sliding_block: s'' = a, a = g (sin(alpha) - mu cos(alpha)), exact; alpha = 20, 25, 30 deg,
+- sliding_block: x'' = g (sin(alpha) - mu cos(alpha)) = a, exact; alpha = 20, 25, 30 deg,
   mu = 0.21; the block starts near the top, already released t0 seconds before frame 0.
-- led: b' = -gamma b, exact; the sensor is linear (no gamma curve, nothing saturates), so
+  The truth is alpha (radians) and mu, the shipped file's constants; only their combination
+  a (meta["physical"]["a"]) is measurable.
+- led: I' = -gamma I, exact; the sensor is linear (no gamma curve, nothing saturates), so
   the pixel values are affine in the LED's brightness; gamma = 2.3, 0.92, 0.46 /s.
 - free_fall: a ball dropped h0 = 0.20 m below a camera looking straight down; its distance
-  h = h0 + g t^2 / 2 and its apparent radius r0 f / h (the dataset's model, f = 1451 px/m
-  at 1920 px wide, scaled with the width here); r0 = 0.0335, 0.06, 0.10 m.
-The ground truth (constants of `equation`, the latent trajectory) is in SynthVideo.truth and
-.latent; physical extras (g, mu, alpha, r0, f, ...) in meta["physical"].
+  d = h0 + g t^2 / 2 (d'' = g) and its apparent radius r0 f / d (the dataset's model,
+  f = 1451 px/m at 1920 px wide, scaled with the width here); r0 = 0.0335, 0.06, 0.10 m.
+Each equation is, word for word, that of a shipped equation file, named in meta["system"]
+(pendulum, torricelli, sliding_block, led_decay, free_fall_scale). The ground truth (its
+constants, the latent trajectory) is in SynthVideo.truth and .latent; physical extras (g, a,
+alpha in degrees, r0, f, ...) in meta["physical"].
 """
 from __future__ import annotations
 
@@ -68,6 +72,7 @@ class _Scene:
     latent: np.ndarray                     # (T, dim)
     latent_names: tuple[str, ...]
     equation: str
+    system: str                            # the shipped equation file with this equation
     truth: dict[str, float]
     physical: dict[str, float]
     state: np.ndarray | None = None
@@ -90,7 +95,7 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
     noise: sensor-noise multiplier (1: a decent camera, 0: none). blur: optical blur sigma
         in pixels. jpeg_quality: 1..100 (100: no compression).
     params: scene-specific overrides (pendulum: zeta, theta0_deg; torricelli: h0;
-        sliding_block: mu, t0; led: b0; free_fall: h0, floor).
+        sliding_block: mu, t0; led: I0; free_fall: h0, floor).
     """
     if name not in SCENES:
         raise FitodeError(f"unknown scene '{name}': choose one of {', '.join(SCENES)}")
@@ -135,7 +140,7 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
         frames[i] = sensor(cv.image)
     meta = {
         "generator": "scene", "name": name, "setting_name": info.setting, "setting": setting,
-        "setting_unit": info.unit, "seed": int(seed), "fps": float(fps), "size": [h, w],
+        "setting_unit": info.unit, "system": sc.system, "seed": int(seed), "fps": float(fps), "size": [h, w],
         "duration": n * dt, "noise": noise, "blur": blur, "jpeg_quality": int(jpeg_quality),
         "params": {k: float(v) for k, v in params.items()}, "physical": sc.physical,
         "description": info.description,
@@ -278,7 +283,7 @@ def _pendulum(L, rng, duration, dt, h, w, p) -> _Scene:
                 (bx - rb, by - rb, bx + rb, by + rb))
 
     return _Scene(background=cv.image, draw=draw, latent=latent, latent_names=names,
-                  equation=PENDULUM_EQUATION, truth={"L": L, "zeta": zeta},
+                  equation=PENDULUM_EQUATION, system="pendulum", truth={"L": L, "zeta": zeta},
                   physical={"g": G, "L": L, "zeta": zeta, "theta0_deg": float(np.rad2deg(theta0)),
                             "omega0": omega0, "pixels_per_metre": ppm, "substeps": 20},
                   state=state, state_names=snames)
@@ -360,7 +365,7 @@ def _torricelli(k, rng, duration, dt, h, w, p) -> _Scene:
                 (x_r, y_bot - 0.01 * ppm - 3, x_r + wall_t + 3, y_bot - 0.01 * ppm + 3))
 
     return _Scene(background=cv.image, draw=draw, overlay=overlay, latent=level[:, None],
-                  latent_names=("h",), equation="h' = -k*sqrt(h)", truth={"k": k},
+                  latent_names=("h",), equation="h' = -k*sqrt(h)", system="torricelli", truth={"k": k},
                   physical={"k": k, "h0": h0, "tank_height": tank_h, "g": G, "pixels_per_metre": ppm,
                             "empty_after_s": float(2 * np.sqrt(h0) / k)},
                   state=level[:, None], state_names=("h",))
@@ -420,11 +425,12 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
             return body * (0.85 + 0.25 * np.clip(up, -1, 1))[..., None]
         c.paint(R.box(centre[0], centre[1], hw, hh, alpha, radius=1.0), shade, bbox)
 
-    return _Scene(background=cv.image, draw=draw, latent=s[:, None], latent_names=("s",),
-                  equation="s'' = a", truth={"a": float(a)},
+    return _Scene(background=cv.image, draw=draw, latent=s[:, None], latent_names=("x",),
+                  equation="x'' = g*(sin(alpha) - mu*cos(alpha))", system="sliding_block",
+                  truth={"alpha": float(alpha), "mu": mu},
                   physical={"a": float(a), "alpha_deg": float(alpha_deg), "mu": mu, "g": G, "t0": t0,
                             "s0": s0, "ramp_length": ramp, "pixels_per_metre": float(ppm)},
-                  state=np.stack([s, v], axis=1), state_names=("s", "s'"))
+                  state=np.stack([s, v], axis=1), state_names=("x", "x'"))
 
 
 # --- LED -----------------------------------------------------------------------------------
@@ -433,9 +439,9 @@ def _led(gamma, rng, duration, dt, h, w, p) -> _Scene:
     if not 0.001 <= gamma <= 100:
         raise FitodeError(f"gamma must be between 0.001 and 100 per second, got {gamma}")
     info = SCENES["led"]
-    b0 = float(p.get("b0", rng.uniform(0.8, 0.95)))
+    b0 = float(p.get("I0", rng.uniform(0.8, 0.95)))
     if not 0 < b0 <= 1:
-        raise FitodeError(f"b0 (initial brightness) must be in (0, 1], got {b0}")
+        raise FitodeError(f"I0 (initial brightness) must be in (0, 1], got {b0}")
     n = _frame_count(duration, info.default_duration, np.inf, dt, "the LED")
     t = np.arange(n) * dt
     b = b0 * np.exp(-gamma * t)
@@ -474,9 +480,9 @@ def _led(gamma, rng, duration, dt, h, w, p) -> _Scene:
     def draw(c: R.Canvas, i: int) -> None:
         c.image += np.float32(b[i]) * light
 
-    return _Scene(background=base, draw=draw, latent=b[:, None], latent_names=("b",),
-                  equation="b' = -gamma*b", truth={"gamma": gamma},
-                  physical={"gamma": gamma, "b0": b0}, state=b[:, None], state_names=("b",))
+    return _Scene(background=base, draw=draw, latent=b[:, None], latent_names=("I",),
+                  equation="I' = -gamma*I", system="led_decay", truth={"gamma": gamma},
+                  physical={"gamma": gamma, "I0": b0}, state=b[:, None], state_names=("I",))
 
 
 # --- free fall -----------------------------------------------------------------------------
@@ -523,17 +529,17 @@ def _free_fall(r0, rng, duration, dt, h, w, p) -> _Scene:
             return shade * (1 - 0.55 * np.clip(1 - seam / 0.06, 0, 1))[..., None]
         c.paint(R.circle(cx, cy, r), col, (cx - r, cy - r, cx + r, cy + r))
 
-    return _Scene(background=bg, draw=draw, latent=dist[:, None], latent_names=("h",),
-                  equation="h'' = g", truth={"g": G},
+    return _Scene(background=bg, draw=draw, latent=dist[:, None], latent_names=("d",),
+                  equation="d'' = g", system="free_fall_scale", truth={"g": G},
                   physical={"g": G, "r0": r0, "h0": h0, "floor": floor, "f_px": f,
                             "radius_px_first": float(radius[0]), "radius_px_last": float(radius[-1])},
-                  state=np.stack([dist, G * t], axis=1), state_names=("h", "h'"))
+                  state=np.stack([dist, G * t], axis=1), state_names=("d", "d'"))
 
 
 _BUILDERS = {"pendulum": _pendulum, "torricelli": _torricelli, "sliding_block": _sliding_block,
              "led": _led, "free_fall": _free_fall}
 _PARAMS = {"pendulum": ("zeta", "theta0_deg", "omega0"), "torricelli": ("h0",),
-           "sliding_block": ("mu", "t0"), "led": ("b0",), "free_fall": ("h0", "floor")}
+           "sliding_block": ("mu", "t0"), "led": ("I0",), "free_fall": ("h0", "floor")}
 
 
 def apparent_radius(v: SynthVideo) -> np.ndarray:
