@@ -23,6 +23,10 @@ Modes:
   short context leaves more frames to the loss); the value z_c still comes from the encoder.
   On the exact trajectory it removes the initial-state bias entirely (RK4 x4: g0 -0.00 %,
   g1 -0.00 %); with 1 % noise on the latents it stays the least biased (g1 +0.2..0.4 %).
+  But in joint training with the encoder (paper videos, 800 steps, RK4) it is no better than
+  "difference" on intensity and scale and fails on motion (g1 0.38 instead of 0.08, where
+  "difference" gives 0.0787): its values are snapshots of an untrained encoder. Hence not the
+  default.
 
 Whatever the mode, frames before the anchor are not predicted: the block copies them from the
 input (they are the rollout's inputs); frames after it are the rollout.
