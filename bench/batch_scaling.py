@@ -57,6 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="fitode-batch-bench-") as tmp:
         manifest = make_videos(Path(tmp), args.videos)
         for w in counts:
+            load_before = os.getloadavg()[0]
             t0 = time.perf_counter()
             res = run_batch(manifest, Path(tmp) / f"out-{w}", workers=w, defaults=defaults, log=None,
                             progress=sys.stderr.isatty())
@@ -64,16 +65,21 @@ def main(argv: list[str] | None = None) -> int:
             job_walls = [r.wall_s for r in res.rows if r.wall_s]
             results.append({"workers": w, "wall_s": round(wall, 2), "complete": res.counts["complete"],
                             "failed": res.counts["failed"], "job_wall_mean_s": round(sum(job_walls) / len(job_walls), 2),
-                            "job_wall_sum_s": round(sum(job_walls), 2), "aggregate": res.aggregate})
+                            "job_wall_sum_s": round(sum(job_walls), 2), "aggregate": res.aggregate,
+                            # other processes on the machine slow a pool down: a load above the
+                            # core count makes the wall times say little about scaling
+                            "load_avg_1min": [round(load_before, 2), round(os.getloadavg()[0], 2)]})
             print(f"workers={w}: {wall:.1f} s", flush=True)
             print(format_aggregate(res.aggregate), flush=True)
     base = results[0]["wall_s"]
     print()
     print(f"{args.videos} videos, {args.restarts} restarts x {args.steps} steps each; {available_cpus()} CPUs")
-    print(f"{'workers':>7}  {'wall s':>7}  {'speed-up':>8}  {'jobs/min':>8}  {'mean job s':>10}  complete")
+    print(f"{'workers':>7}  {'wall s':>7}  {'speed-up':>8}  {'jobs/min':>8}  {'mean job s':>10}  complete  "
+          f"load before/after")
     for r in results:
         print(f"{r['workers']:>7}  {r['wall_s']:>7.1f}  {base / r['wall_s']:>8.2f}  "
-              f"{60 * args.videos / r['wall_s']:>8.1f}  {r['job_wall_mean_s']:>10.2f}  {r['complete']}/{args.videos}")
+              f"{60 * args.videos / r['wall_s']:>8.1f}  {r['job_wall_mean_s']:>10.2f}  {r['complete']:>5}/{args.videos}  "
+              f"{r['load_avg_1min'][0]:.1f} / {r['load_avg_1min'][1]:.1f}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     record = {"bench": "batch_scaling", "videos": args.videos, "restarts": args.restarts, "max_steps": args.steps,

@@ -408,3 +408,22 @@ def test_sigint_stops_workers_and_leaves_the_summary_consistent(tmp_path):
     (out / "calls.log").unlink()
     res = run_batch(m, out, workers=2, runner=RUNNER, log=None)
     assert res.ok and res.reused == ["001-quick"] and sorted(_calls(out)) == ["002-slow0", "003-slow1", "004-slow2"]
+
+
+def test_equations_are_checked_before_anything_runs(tmp_path):
+    _video(tmp_path, "a.json", gamma=1)
+    _video(tmp_path, "b.json", gamma=1)
+    cases = [
+        ("video,eq", [f"a.json,{EQ}", "b.json,I' = -gamma*"], "videos.csv line 3, column 'eq': "),
+        ("video,eq,true.gama", [f"a.json,{EQ},1"],
+         "videos.csv line 2, column 'true.gama': 'gama' is not a learnable constant of the equation (learnable: gamma)"),
+        ("video,eq,init.k", [f"a.json,{EQ},1"], "column 'init.k': 'k' is not a learnable constant"),
+        ("video,system", ["a.json,no_such_system"], "videos.csv line 2, column 'system': "),
+    ]
+    for header, rows, message in cases:
+        with pytest.raises(ManifestError) as err:
+            load_manifest(_csv(tmp_path, rows, header=header))
+        assert message in str(err.value) and "\n" not in str(err.value)
+    # a shipped system by name, in the auto-detected 'equation' column
+    job = load_manifest(_csv(tmp_path, ["a.json,led_decay"], header="video,equation")).jobs[0]
+    assert job.kwargs["system"] == "led_decay"
