@@ -427,3 +427,13 @@ def test_equations_are_checked_before_anything_runs(tmp_path):
     # a shipped system by name, in the auto-detected 'equation' column
     job = load_manifest(_csv(tmp_path, ["a.json,led_decay"], header="video,equation")).jobs[0]
     assert job.kwargs["system"] == "led_decay"
+
+
+def test_progress_bar_counts_done_failed_running(tmp_path, capsys):
+    _video(tmp_path, "ok.json", gamma=0.5)
+    _video(tmp_path, "bad.json", **{"raise": "nope"})
+    m = _csv(tmp_path, [f"ok.json,A,{EQ},", f"bad.json,A,{EQ},"])
+    run_batch(m, tmp_path / "out", workers=1, runner=RUNNER, log=None, progress=True)
+    err = capsys.readouterr().err.replace("\r", "\n")
+    assert "running=1" in err
+    assert "2/2" in err and "done=1, failed=1, running=0" in err

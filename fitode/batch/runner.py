@@ -293,8 +293,8 @@ class _Progress:
         else:
             self.failed += 1
         if self.bar is not None:
+            self.bar.set_postfix(done=self.done, failed=self.failed, running=len(self.running), refresh=False)
             self.bar.update(1)
-        self._post()
 
     def close(self) -> None:
         if self.bar is not None:
