@@ -104,7 +104,7 @@ def train_options(args: argparse.Namespace) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     from fitode.options import parse_assignments
-    from fitode.pipeline import DEFAULT_TRAIN_FRACTION, run_video
+    from fitode.pipeline import RunInterrupted
     from fitode.report import format_table
 
     human = sys.stderr if args.json else sys.stdout
@@ -114,13 +114,12 @@ def run(args: argparse.Namespace) -> int:
 
     const = parse_assignments(args.const)
     init = parse_assignments(args.init)
-    outcome = run_video(
-        args.video, args.out, eq=args.eq, eq_file=args.eq_file, system=args.system, const=const,
-        free=tuple(args.free), init=init or None, prior=parse_prior(args.prior), fps=args.fps, start=args.start,
-        end=args.end, roi=args.roi, size=args.size, color=args.color, stride=args.stride, mask=args.mask,
-        calibrate=args.calibrate,
-        train_fraction=args.train_fraction if args.train_fraction is not None else DEFAULT_TRAIN_FRACTION,
-        progress=not args.quiet and sys.stderr.isatty(), log=None if args.quiet else say, **train_options(args))
+    try:
+        outcome = _run(args, const, init, say)
+    except RunInterrupted as stop:  # the folder is written; show what the restarts had reached
+        say(format_table(stop.outcome.report))
+        say(f"results (incomplete): {stop.outcome.out_dir}")
+        raise
     say(format_table(outcome.report))
     if not args.quiet:
         say(f"results: {outcome.out_dir}")
@@ -128,3 +127,14 @@ def run(args: argparse.Namespace) -> int:
         sys.stdout.write(json.dumps(outcome.report, indent=1) + "\n")
         sys.stdout.flush()
     return 0
+
+
+def _run(args, const, init, say):
+    from fitode.pipeline import DEFAULT_TRAIN_FRACTION, run_video
+    return run_video(
+        args.video, args.out, eq=args.eq, eq_file=args.eq_file, system=args.system, const=const,
+        free=tuple(args.free), init=init or None, prior=parse_prior(args.prior), fps=args.fps, start=args.start,
+        end=args.end, roi=args.roi, size=args.size, color=args.color, stride=args.stride, mask=args.mask,
+        calibrate=args.calibrate,
+        train_fraction=args.train_fraction if args.train_fraction is not None else DEFAULT_TRAIN_FRACTION,
+        progress=not args.quiet and sys.stderr.isatty(), log=None if args.quiet else say, **train_options(args))

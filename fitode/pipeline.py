@@ -20,6 +20,14 @@ DEFAULT_TRAIN_FRACTION = 1.0
 RUNS_DIR = "fitode-runs"
 
 
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C during training, after the folder was written (status "incomplete"); .outcome has it."""
+
+    def __init__(self, outcome: "RunOutcome"):
+        super().__init__("interrupted")
+        self.outcome = outcome
+
+
 @dataclass
 class RunOutcome:
     """What run_video returns. report is exactly what result.json holds."""
@@ -46,7 +54,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
     silences it. train_options are TrainConfig fields (restarts, max_steps, window,
     integrator, encoder, device, seed, ...) plus `callback` (called with every StepInfo).
     Raises FitodeError (one-line message) for any bad input; KeyboardInterrupt propagates after
-    the partial folder is written.
+    the partial folder is written (RunInterrupted, carrying the RunOutcome, when the trainer
+    returned what it had).
     """
     from fitode import report as rep
 
@@ -118,16 +127,24 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
         _write_partial(report, recorder, folder, "failed", str(exc), plots_done)
         raise
 
+    interrupted = bool(result.meta.get("interrupted"))
     for line in rep.run_lines(result):
         say(line)
     calibration = None
-    if points is not None:
+    if points is not None and not interrupted:
         from fitode.calibrate import calibrate_result
         calibration = calibrate_result(result, ode, params, points, analysis, time_offset=t0,
                                        seed=int(settings.get("seed", 0)))
         for line in calibration.lines():
             say(line)
     rep.complete_report(report, result, analysis, calibration, t0)
+    if interrupted:
+        stopped = [r for r in result.runs if r.status == "interrupted"]
+        where = f"run {stopped[0].index + 1} at step {stopped[0].steps}" if stopped else "training"
+        report["status"] = "incomplete"
+        report["error"] = f"interrupted (Ctrl-C) in {where}"
+        report["warnings"].append(f"interrupted (Ctrl-C) in {where}: the estimates come from unfinished "
+                                  "training" + ("; --calibrate was not applied" if points is not None else ""))
     result.meta.update({"input": report["input"], "calibration": report["calibration"]})
     result.save(folder / "fit.json")
     plot_warnings = _plots_for_result(folder, result, report, calibration, plots_done, t0)
@@ -135,7 +152,10 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
     report["files"] = sorted(["result.json", "fit.json", *plots_done])
     rep.write_json(report, folder / "result.json")
     say(f"wrote {folder}/ ({', '.join(report['files'])})")
-    return RunOutcome(result=result, out_dir=folder, report=report, warnings=list(report["warnings"]))
+    outcome = RunOutcome(result=result, out_dir=folder, report=report, warnings=list(report["warnings"]))
+    if interrupted:
+        raise RunInterrupted(outcome)
+    return outcome
 
 
 # ---------------------------------------------------------------------------------------------
@@ -180,9 +200,6 @@ def _check_train_options(options: Mapping[str, Any]) -> None:
 
 
 def _resolve_equation(eq, eq_file, system, const, free):
-    given = [x for x in (eq, eq_file, system) if x is not None]
-    if len(given) != 1:
-        raise FitodeError("give the equation once: --eq TEXT, --eq-file PATH or --system NAME")
     from fitode.eqfile import resolve
     return resolve(eq=eq, eq_file=eq_file, system=system, const=dict(const or {}), free=tuple(free))
 
@@ -276,6 +293,7 @@ def _plots_for_result(folder: Path, result, report, calibration, plots_done: lis
     runs = [asdict(r) for r in result.runs]
     for r in runs:
         r["selected"] = r["index"] in result.selected
+        r["best"] = r["index"] == result.best
     estimates = {k: v["value"] for k, v in report["parameters"].items()}
     units = {k: v.get("unit") for k, v in report["parameters"].items()}
     latent, rollout, ylabels = result.latent, result.rollout, None

@@ -52,6 +52,8 @@ def _normalise_analysis(raw, names: Iterable[str]) -> dict[str, Any]:
     per = getattr(raw, "constants", None)
     if per is None and isinstance(raw, Mapping):
         per = raw
+    if isinstance(per, (list, tuple)):  # IdentifiabilityReport.constants: ConstantReport items with .name
+        per = {getattr(c, "name", None): c for c in per}
     out: dict[str, dict[str, Any]] = {}
     for name in names:
         item = per.get(name) if isinstance(per, Mapping) else None
@@ -107,8 +109,9 @@ def understanding_lines(ode, spec, analysis, clip, n_train: int, settings: Mappi
     if ode.fixed:
         lines.append("fixed: " + ", ".join(f"{k} = {v:.6g}" for k, v in ode.fixed.items()))
     lines.append(f"prior on the latent: N({settings['prior'][0]:g}, {settings['prior'][1]:g}^2)")
-    for line in (analysis or {}).get("lines", []):
-        lines.append(f"identifiability: {line}")
+    if (analysis or {}).get("lines"):
+        lines.append("identifiability:")
+        lines += [f"  {line}" for line in analysis["lines"]]
     lines.append(f"training: {settings['restarts']} restarts, up to {settings['max_steps']} steps, window "
                  f"{settings['window']} frames, {settings['integrator']} integrator, {settings['encoder']} encoder, "
                  f"{settings['device']}, seed {settings['seed']}")
@@ -216,8 +219,7 @@ def complete_report(report: dict[str, Any], result, analysis, calibration, t0: f
         if not entry["measurable"]:
             item = analysis["constants"].get(name, {})
             comb = item.get("combination")
-            entry["warnings"].append("not measurable alone" + (f": appears only in {comb}" if comb else "")
-                                     + (f" ({item['reason']})" if item.get("reason") else ""))
+            entry["warnings"].append("not measurable alone" + (f": the video fixes only {comb}" if comb else ""))
         if scale_of(analysis, name) == "free-small-amplitude" and not entry["calibrated"]:
             entry["warnings"].append("scale-free only for small amplitudes: with large swings the latent's "
                                      "arbitrary scale biases it; calibrate the state to be sure")
@@ -314,8 +316,10 @@ def format_table(report: Mapping[str, Any]) -> str:
     """The table printed at the end: name, value, spread over restarts, unit, then the warnings."""
     params = report.get("parameters") or {}
     out = []
-    if report.get("status") != "complete":
+    if not params:
         out.append(f"no estimates: run {report.get('status')} ({report.get('error', '')})")
+    elif report.get("status") != "complete":
+        out.append(f"run {report.get('status')}: {report.get('error', '')}")
     if params:
         n_runs = len(report.get("runs", []))
         n_sel = len(report.get("selected", []))
@@ -323,7 +327,7 @@ def format_table(report: Mapping[str, Any]) -> str:
         for name, p in params.items():
             unit = p.get("unit") or ("latent units" if p.get("latent_units") else "")
             flag = "!" if p.get("warnings") else ""
-            spread = f"±{_num(p['std'])}" if p.get("n_runs", 1) > 1 else "-"
+            spread = f"±{_spread(p['std'])}" if p.get("n_runs", 1) > 1 else "-"
             rows.append((name, _num(p["value"]), spread, unit, flag))
         widths = [max(len(r[i]) for r in rows) for i in range(4)]
         out.append(f"estimates (mean over {n_sel} of {n_runs} restarts; spread = their standard deviation)")
@@ -350,6 +354,13 @@ def _num(v: float | None) -> str:
         decimals = max(0, 4 - int(math.floor(math.log10(mag))))
         return f"{v:.{min(decimals, 7)}f}"
     return f"{v:.4e}"
+
+
+def _spread(v: float | None) -> str:
+    """Two significant digits: a spread is itself uncertain."""
+    if v is None or not math.isfinite(v):
+        return "nan"
+    return f"{v:.2g}"
 
 
 def _pct(rel: float) -> str:
