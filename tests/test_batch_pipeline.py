@@ -94,6 +94,7 @@ def test_local_batch_matches_each_result_and_reruns_only_the_broken_job(local_ba
         assert float(row["gamma.true"]) == true
         assert float(row["gamma.rel_error"]) == pytest.approx((est["value"] - true) / true)
         assert float(row["wall_s"]) > 0
+        assert (row["stride"], float(row["dt"])) == ("1", report["input"]["dt"])
         assert (out / name / "job.json").is_file()
     # the per-setting aggregate is the mean and sample std of the summary's estimates
     agg = {r["setting"]: r for r in read_csv(out / "aggregate.csv")}

@@ -125,12 +125,11 @@ def report_parameters(report: dict[str, Any]) -> dict[str, dict[str, float | Non
 
 
 def report_details(report: dict[str, Any]) -> dict[str, Any]:
-    """A few facts worth a summary column, where the report has them."""
+    """A few facts worth a summary column (the stride `auto` chose, dt), where the report has them."""
     out: dict[str, Any] = {}
-    for key in ("dt", "stride", "fps"):
-        v = report.get(key)
-        if v is None and isinstance(report.get("video"), dict):
-            v = report["video"].get(key)
+    source = report.get("input") if isinstance(report.get("input"), dict) else report
+    for key in ("fps", "stride", "dt", "frames_used"):
+        v = source.get(key)
         if isinstance(v, (int, float)) and not isinstance(v, bool):
             out[key] = v
     runs = report.get("runs")
