@@ -104,6 +104,7 @@ def write_mp4(path: str | Path, frames: np.ndarray, fps: float) -> Path:
 def make_example(out_dir: str | Path = HERE) -> Path:
     n = int(round(DURATION_S * FPS))
     angles = pendulum_angles(n, FPS, TRUTH["L"], TRUTH["zeta"], math.radians(THETA0_DEG))
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
     return write_mp4(Path(out_dir) / "pendulum.mp4", render_pendulum(angles), FPS)
 
 
