@@ -29,6 +29,7 @@ moved, that vanishes in the linear part, or where no linearisation exists is "de
 """
 from __future__ import annotations
 
+import math
 import re
 import warnings
 from dataclasses import dataclass
@@ -42,7 +43,8 @@ SCALES = ("free", "dependent", "free-small-amplitude")
 
 _SEED = 20250101
 _TOL = 1e-7
-_PREFIX = "enters only through "  # relative tolerance on singular values and null-vector components
+_PREFIX = "enters only through "
+_MAX_NAMED = 8  # most measurable combinations named in a report  # relative tolerance on singular values and null-vector components
 
 
 @dataclass(frozen=True)
@@ -128,7 +130,8 @@ def analyse(system: OdeSystem, *, seed: int = _SEED) -> IdentifiabilityReport:
                 by_numbers = rest & linear.pinned
     by_nonlinear = (full.pinned - by_known - by_numbers) if full is not None else set()
 
-    decomp = _coefficients(system, model)
+    decomp = _coefficients(system, model) if not all(separable[n] for n in present) else None
+    named: dict[tuple[str, ...], str] = {}
     reports = []
     for name in names:
         if name not in present:
@@ -138,7 +141,10 @@ def analyse(system: OdeSystem, *, seed: int = _SEED) -> IdentifiabilityReport:
         touched = model.touched(name)
         if not separable[name]:
             group = groups[name]
-            combination = _combination(group, decomp, model, rank_of_group=groups_rank(model, group, rng))
+            key = tuple(group)
+            if key not in named:
+                named[key] = _combination(group, decomp, model, rank_of_group=groups_rank(model, group, rng))
+            combination = named[key]
             sep_text = f"{_PREFIX}{combination}; "
         else:
             combination, sep_text = None, ""
@@ -277,10 +283,14 @@ _STATE_RANGES = ((0.2, 1.8, 24), (-1.8, 1.8, 24), (2.0, 8.0, 16))
 _PARAM_RANGES = ((0.5, 1.5), (0.1, 0.9), (1.5, 4.0))
 
 
-def _points(model: _Model, rng: np.random.Generator):
-    """Yield (values, args) sample sets: states over several ranges, one draw of the constants."""
+def _points(model: _Model, rng: np.random.Generator, n_cols: int):
+    """Yield (values, args) sample sets: states over several ranges, one draw of the constants.
+
+    At least three rows per column, so that the rank is never limited by the sample size."""
     n_y = len(model.all_y)
-    ys = np.concatenate([rng.uniform(lo, hi, size=(n, n_y)) for lo, hi, n in _STATE_RANGES])
+    base = sum(n for _, _, n in _STATE_RANGES) * model.n_eq
+    more = max(1, -(-3 * n_cols // base))
+    ys = np.concatenate([rng.uniform(lo, hi, size=(n * more, n_y)) for lo, hi, n in _STATE_RANGES])
     for lo, hi in _PARAM_RANGES:
         p = rng.uniform(lo, hi, size=len(model.p))
         yield np.hstack([ys, np.broadcast_to(p, (ys.shape[0], len(p)))])
@@ -292,7 +302,7 @@ def _stack(model: _Model, columns: list[list[sympy.Expr]], rng: np.random.Genera
     args = model.all_y + list(model.p.values())
     flat = [columns[c][r] for r in range(model.n_eq) for c in range(len(columns))]
     need = max(2 * len(columns), 8)
-    for values in _points(model, rng):
+    for values in _points(model, rng, len(columns)):
         vals = _evaluate(flat, args, values)  # (points, n_eq * n_cols)
         vals = vals.reshape(values.shape[0], model.n_eq, len(columns))
         ok = np.all(np.isfinite(vals), axis=(1, 2))
@@ -302,6 +312,10 @@ def _stack(model: _Model, columns: list[list[sympy.Expr]], rng: np.random.Genera
 
 
 def _normalise(a: np.ndarray) -> np.ndarray:
+    """Unit columns (zero columns stay zero); dividing by the largest entry first avoids overflow."""
+    peak = np.max(np.abs(a), axis=0) if a.size else np.ones(a.shape[1])
+    peak[peak == 0] = 1.0
+    a = a / peak
     norms = np.linalg.norm(a, axis=0)
     norms[norms == 0] = 1.0
     return a / norms
@@ -311,7 +325,7 @@ def _null_space(a: np.ndarray) -> tuple[int, np.ndarray]:
     """(rank, orthonormal basis of the null space as columns) of a (rows, cols)."""
     if a.size == 0:
         return 0, np.eye(a.shape[1])
-    _, s, vt = np.linalg.svd(a, full_matrices=True)
+    _, s, vt = np.linalg.svd(a, full_matrices=a.shape[0] < a.shape[1])
     if s.size == 0 or s[0] == 0:
         return 0, np.eye(a.shape[1])
     rank = int(np.sum(s > _TOL * s[0]))
@@ -424,6 +438,17 @@ def _linearised(model: _Model, present: list[str], rng) -> _Symmetry | bool:
 # --- naming the measurable combinations ------------------------------------------------------
 
 
+def _expansion_size(expr: sympy.Expr) -> int:
+    """A bound on the number of terms one power of a sum expands into ((x + a + b)^60 is huge)."""
+    worst = 1
+    for power in expr.atoms(sympy.Pow):
+        base, exponent = power.args
+        if base.is_Add and exponent.is_Integer and abs(int(exponent)) > 1:
+            n, e = len(base.args), min(abs(int(exponent)), 10**6)
+            worst = max(worst, math.comb(n + e - 1, e) if e < 10**4 else 10**9)
+    return worst
+
+
 def _coefficients(system: OdeSystem, model: _Model) -> list[sympy.Expr] | None:
     """The coefficients c_j(p) of f_r = sum_j c_j(p) * phi_j(y) over all equations, or None when
     some right-hand side does not split into constant and state factors."""
@@ -432,7 +457,7 @@ def _coefficients(system: OdeSystem, model: _Model) -> list[sympy.Expr] | None:
     coeffs = []
     for s in system.states:
         expr = system.rhs[s]
-        if sympy.count_ops(expr) > 400:
+        if sympy.count_ops(expr) > 400 or _expansion_size(expr) > 500:
             return None
         try:
             expanded = sympy.expand(expr)
@@ -485,15 +510,14 @@ def _show(expr: sympy.Expr) -> str:
 
 def _combination(group: list[str], coeffs: list[sympy.Expr] | None, model: _Model, rank_of_group: int) -> str:
     names = _join(group)
-    if coeffs is None:
-        return f"{rank_of_group} combination{'s' if rank_of_group != 1 else ''} of {names}"
     learn = [sympy.Symbol(n) for n in model.system.learnable]
     group_syms = [sympy.Symbol(n) for n in group]
+    involved = [c for c in coeffs or () if c.has(*group_syms)]
     seen: list[sympy.Expr] = []
-    for c in coeffs:
-        if c.has(*group_syms):
+    if len(involved) <= _MAX_NAMED:  # beyond that a list of formulas helps nobody
+        for c in involved:
             cleaned = _clean(c, learn)
-            if not any(sympy.simplify(cleaned - s) == 0 or sympy.simplify(cleaned * s) == 1 for s in seen):
+            if not any(cleaned == s or cleaned == 1 / s for s in seen):
                 seen.append(cleaned)
     if not seen:
         return f"{rank_of_group} combination{'s' if rank_of_group != 1 else ''} of {names}"
