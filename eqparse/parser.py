@@ -12,6 +12,11 @@ Names:
 - every other name is a learnable constant.
 Learnable and fixed constants are listed in order of first appearance in the text; states in
 the order of their equations.
+
+Implicit equations are solved for their highest derivative without sympy.solve (see
+`_solve_for`). Refusals are EquationError: `column` is 1-based within `text`, which is the line
+the error is on (the message starts with "line N: " when the input has several lines).
+Limits: MAX_LENGTH characters, MAX_DEPTH levels of nesting.
 """
 from __future__ import annotations
 
@@ -255,6 +260,10 @@ class _Builder:
             hint = ""
             if char == "'":
                 hint = "; a prime belongs right after a variable name, as in x'"
+            elif char.isalpha():
+                hint = "; names use the letters a-z and A-Z, digits and _"
+            elif char in ",[]{}":
+                hint = "; functions take one argument in round brackets"
             return self.error(f"unexpected character {char!r}{hint}", line, column)
         if isinstance(exc, UnexpectedToken):
             tok = exc.token
@@ -340,7 +349,7 @@ def parse(text: str, *, fix: Mapping[str, float] | None = None, free: Iterable[s
     for eq, (line, column) in zip(equations, starts):
         eq.line, eq.column = line, column
 
-    return _build(b, equations, dict(fix or {}), list(free))
+    return _build(b, equations, dict(fix or {}), [free] if isinstance(free, str) else list(free))
 
 
 def _build(b: _Builder, equations: list[_Equation], fix: dict[str, float], free: list[str]) -> OdeSystem:
