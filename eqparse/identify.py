@@ -22,10 +22,18 @@ null space of [V_1..V_S, W_1..W_S, -J] over the sampled points. A constant is "d
 some symmetry moves it (after removing the directions J cannot see): its value is tied to the
 latent's units (h' = -k*sqrt(h): k -> k/sqrt(a); free fall h'' = g: g -> g/a). It is "free"
 when no symmetry moves it and every state it touches can be rescaled freely (I' = -gamma*I).
-When a state's scale is pinned by nonlinear terms (sin(theta)), the equations are linearised
-at the origin (the small-amplitude motion) and the test is repeated there: a constant that no
+A state whose scale no symmetry changes is "pinned", for one of three reasons, told apart by
+repeating the test: (1) a known constant sets it (v' = -g - c*v*|v|: with g made learnable the
+scale is free again); (2) fixed numbers set it even in the linear part (x'' = 1 - k*x^3); in
+both cases the constants are "free", measured in the units those fixed values impose; (3)
+nonlinear terms set it (sin(theta), x^2 in Van der Pol). Then the equations are linearised at
+the origin (the small-amplitude motion) and the test is repeated there: a constant that no
 symmetry of the linear system moves is "free-small-amplitude" (the pendulum's L); one that is
 moved, that vanishes in the linear part, or where no linearisation exists is "dependent".
+
+Limits: the linearisation is taken at the origin, not at an equilibrium elsewhere (the
+Brusselator's); absurd inputs (x^(10^10)) can overflow the sampled values, and then the rank is
+only as good as the finite samples.
 """
 from __future__ import annotations
 
