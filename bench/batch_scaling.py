@@ -63,9 +63,11 @@ def main(argv: list[str] | None = None) -> int:
                             progress=sys.stderr.isatty())
             wall = time.perf_counter() - t0
             job_walls = [r.wall_s for r in res.rows if r.wall_s]
+            job_cpu = [r.details.get("cpu_s", 0.0) for r in res.rows]
             results.append({"workers": w, "wall_s": round(wall, 2), "complete": res.counts["complete"],
                             "failed": res.counts["failed"], "job_wall_mean_s": round(sum(job_walls) / len(job_walls), 2),
-                            "job_wall_sum_s": round(sum(job_walls), 2), "aggregate": res.aggregate,
+                            "job_wall_sum_s": round(sum(job_walls), 2), "job_cpu_sum_s": round(sum(job_cpu), 2),
+                            "aggregate": res.aggregate,
                             # other processes on the machine slow a pool down: a load above the
                             # core count makes the wall times say little about scaling
                             "load_avg_1min": [round(load_before, 2), round(os.getloadavg()[0], 2)]})
@@ -75,11 +77,11 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(f"{args.videos} videos, {args.restarts} restarts x {args.steps} steps each; {available_cpus()} CPUs")
     print(f"{'workers':>7}  {'wall s':>7}  {'speed-up':>8}  {'jobs/min':>8}  {'mean job s':>10}  complete  "
-          f"load before/after")
+          f"job CPU s  load before/after")
     for r in results:
         print(f"{r['workers']:>7}  {r['wall_s']:>7.1f}  {base / r['wall_s']:>8.2f}  "
               f"{60 * args.videos / r['wall_s']:>8.1f}  {r['job_wall_mean_s']:>10.2f}  {r['complete']:>5}/{args.videos}  "
-              f"{r['load_avg_1min'][0]:.1f} / {r['load_avg_1min'][1]:.1f}")
+              f"{r['job_cpu_sum_s']:>9.1f}  {r['load_avg_1min'][0]:.1f} / {r['load_avg_1min'][1]:.1f}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     record = {"bench": "batch_scaling", "videos": args.videos, "restarts": args.restarts, "max_steps": args.steps,

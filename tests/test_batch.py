@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -143,6 +144,7 @@ seed = 4
     ("video,eq,true", f"a.json,{EQ},1", "column 'true': write one column per constant"),
     ("video,eq,true.2x", f"a.json,{EQ},1", "column 'true.2x': '2x' is not a constant's name"),
     ("video,eq,name", f"a.json,{EQ},../up", "column 'name': '../up' is not a folder name"),
+    ("video,eq,name", f"a.json,{EQ},summary.csv", "column 'name': 'summary.csv' is the name of one of the batch's"),
     ("video,eq,start,end", f"a.json,{EQ},3,2", "column 'end': end 2 s is not after start 3 s"),
     ("eq", EQ, "videos.csv line 1: the header has no 'video' column"),
 ])
@@ -359,6 +361,14 @@ def test_cli_bad_manifest_is_one_line_status_2(tmp_path, capsys):
     assert err.count("\n") == 0 and "videos.csv line 2, column 'fps'" in err
     assert main(["batch", str(tmp_path / "nope.csv")]) == 2
     assert main(["batch", str(m), "--address", "x:1"]) == 2
+
+
+def test_ray_executor_without_ray_is_a_one_line_error(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
+    _video(tmp_path, "a.json", gamma=0.5)
+    m = _csv(tmp_path, [f"a.json,A,{EQ},"])
+    assert main(["batch", str(m), "--executor", "ray"]) == 2
+    assert "--executor ray needs Ray: pip install 'fitode[ray]'" in capsys.readouterr().err
 
 
 def test_cli_dry_run_lists_jobs_and_writes_nothing(tmp_path, capsys):

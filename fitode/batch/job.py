@@ -81,6 +81,7 @@ def execute_job(task: Task) -> JobOutcome:
 
     job = task.job
     t0 = time.perf_counter()
+    c0 = time.process_time()
     base = dict(name=job.name, host=socket.gethostname(), pid=os.getpid())
     try:
         # the driver hands out only jobs to (re)run, in folders it owns: what a failed or killed
@@ -93,9 +94,11 @@ def execute_job(task: Task) -> JobOutcome:
         if report is None:
             report = read_report(Path(task.out_dir))
         status, problem = check_report(report)
+        # CPU seconds say what a job costs whatever else the machine is doing; wall time does not
+        details = {**report_details(report), "cpu_s": round(time.process_time() - c0, 3)}
         return JobOutcome(status=status, error=problem, wall_s=time.perf_counter() - t0,
                           parameters=report_parameters(report), warnings=list(getattr(outcome, "warnings", []) or []),
-                          details=report_details(report), **base)
+                          details=details, **base)
     except FitodeError as exc:
         return JobOutcome(status="failed", error=one_line(str(exc)), wall_s=time.perf_counter() - t0, **base)
     except MemoryError:

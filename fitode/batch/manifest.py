@@ -58,6 +58,8 @@ VIDEO_KEYS = ("fps", "start", "end", "roi", "size", "color", "stride", "mask", "
 MODEL_KEYS = ("prior", "free")
 META_KEYS = ("video", "setting", "name")
 MAP_PREFIXES = ("const", "init", "true")
+# files the batch writes beside the job folders
+RESERVED_NAMES = {"batch.json", "summary.csv", "summary.json", "aggregate.csv", "aggregate.json"}
 # Options the batch sets itself, or that make no sense per job.
 _NOT_PER_JOB = {"prior", "device"}
 
@@ -346,6 +348,8 @@ def _make_job(index: int, count: int, row: _Row, fdef: _Row, cli: _Row) -> Job:
         name = _text(row.values["name"], row, "name")
         if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", name):
             raise row.error("name", f"'{name}' is not a folder name (letters, digits, . _ -)")
+        if name.lower() in RESERVED_NAMES:
+            raise row.error("name", f"'{name}' is the name of one of the batch's own files")
     else:
         width = max(3, len(str(count)))
         stem = re.sub(r"[^A-Za-z0-9._-]+", "_", video.stem).strip("._") or "video"

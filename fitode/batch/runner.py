@@ -73,17 +73,20 @@ def run_batch(manifest: str | Path | Manifest, out: str | Path | None = None, *,
     man = manifest if isinstance(manifest, Manifest) else load_manifest(manifest, defaults)
     out_dir = Path(out) if out is not None else default_out_dir(man.path)
     say = log or (lambda *_: None)
+    # before touching the out dir: a missing Ray or a bad --workers must leave nothing behind
+    exe = executor if not isinstance(executor, str) else (
+        None if dry_run and executor == "local" else make_executor(executor, workers, address))
     lock = _claim(out_dir, man, dry_run)
     try:
-        return _run(man, out_dir, say, executor=executor, workers=workers, address=address, force=force,
-                    retry_failed=retry_failed, progress=progress, runner=runner, dry_run=dry_run, t0=t0)
+        return _run(man, out_dir, say, exe, force=force, retry_failed=retry_failed, progress=progress,
+                    runner=runner, dry_run=dry_run, t0=t0)
     finally:
         if lock is not None:
             lock.close()
 
 
-def _run(man: Manifest, out_dir: Path, say, *, executor, workers, address, force, retry_failed, progress,
-         runner, dry_run, t0) -> BatchResult:
+def _run(man: Manifest, out_dir: Path, say, exe: Executor | None, *, force: bool, retry_failed: bool,
+         progress: bool, runner: str, dry_run: bool, t0: float) -> BatchResult:
     rows: dict[str, SummaryRow] = {}
     to_run: list[Job] = []
     for job in man.jobs:
@@ -99,8 +102,6 @@ def _run(man: Manifest, out_dir: Path, say, *, executor, workers, address, force
         row.details.pop("hash_match", None)
         rows[job.name] = row
 
-    exe = executor if not isinstance(executor, str) else (
-        None if dry_run and executor == "local" else make_executor(executor, workers, address))
     reused = [n for n, r in rows.items() if r.reused]
     kept = len(rows) - len(reused) - len(to_run)
     plan = (f"{len(man.jobs)} job{'s' if len(man.jobs) != 1 else ''}: {len(reused)} reused"
@@ -111,8 +112,17 @@ def _run(man: Manifest, out_dir: Path, say, *, executor, workers, address, force
             say(f"  would run {job.name}: {job.video.name}  {_short(job.kwargs)}")
         return BatchResult(out_dir, list(rows.values()), aggregate(list(rows.values())), [], reused,
                            time.perf_counter() - t0)
-    if hasattr(exe, "start") and to_run:
-        exe.start()  # Ray: connect first, so the plan line can say how many CPUs the cluster has
+    try:
+        if hasattr(exe, "start") and to_run:
+            exe.start()  # Ray: connect first, so the plan line can say how many CPUs the cluster has
+        return _execute(man, out_dir, say, exe, plan, rows, to_run, reused, progress, runner, t0)
+    finally:
+        if hasattr(exe, "stop"):
+            exe.stop()
+
+
+def _execute(man: Manifest, out_dir: Path, say, exe: Executor, plan: str, rows: dict[str, SummaryRow],
+             to_run: list[Job], reused: list[str], progress: bool, runner: str, t0: float) -> BatchResult:
     say(plan + (f" on {exe.describe()}" if to_run else "") + f"; out: {out_dir}")
 
     meta = {"manifest": str(man.path), "out": str(out_dir), "started": _now(),
@@ -142,9 +152,6 @@ def _run(man: Manifest, out_dir: Path, say, *, executor, workers, address, force
         write_summary(out_dir, ordered, {**meta, "updated": _now(), "interrupted": True})
         bar.close()
         raise
-    finally:
-        if hasattr(exe, "stop"):
-            exe.stop()
     bar.close()
     result = BatchResult(out_dir, ordered, aggregate(ordered), ran, reused, time.perf_counter() - t0)
     write_summary(out_dir, ordered, {**meta, "finished": _now(), "wall_s": round(result.wall_s, 3)})
