@@ -20,7 +20,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     ex = eq.add_mutually_exclusive_group(required=True)
     ex.add_argument("--eq", metavar="TEXT", help="the equation, e.g. \"x'' = -g/L*sin(x) - z*x'\"")
     ex.add_argument("--eq-file", metavar="PATH", help="an equation file (TOML)")
-    ex.add_argument("--system", metavar="NAME", help="a shipped equation file by name (`fitode check --list`)")
+    ex.add_argument("--system", metavar="NAME", help=f"a shipped equation file by name: {_systems()}")
     eq.add_argument("--const", metavar="NAME=VALUE", action="append", default=[],
                     help="fix a constant to a value (repeatable)")
     eq.add_argument("--free", metavar="NAME", action="append", default=[],
@@ -61,6 +61,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                      "must not exist or be empty")
     out.add_argument("--quiet", action="store_true", help="no progress or chatter; the table is still printed")
     out.add_argument("--json", action="store_true", help="print result.json on stdout (human text goes to stderr)")
+
+
+def _systems() -> str:
+    try:
+        from fitode.eqfile import list_systems
+        return ", ".join(list_systems())
+    except Exception:  # noqa: BLE001 - help text must never break the command
+        return "see fitode/equations/"
 
 
 def _positive_int(text: str) -> int:

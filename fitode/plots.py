@@ -55,7 +55,8 @@ def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rol
             ax.axvspan(t_train, t[-1], color="0.85", zorder=0, label="extrapolated (not trained on)")
             ax.axvline(t_train, color="0.4", lw=0.8, ls="--")
         if window and window < len(t):
-            ax.axvline(t[window - 1], color="tab:green", lw=0.8, ls=":", label=f"one training window ({window} frames)")
+            ax.axvline(t[window - 1], color="tab:green", lw=0.8, ls=":",
+                       label=f"end of the first {window}-frame window: the rollout after it is a prediction")
         ax.set_ylabel(ylabels[i] if ylabels else f"{states[i]} (latent)")
         ax.grid(alpha=0.3)
         if not finite.all():
@@ -172,7 +173,8 @@ def plot_frames(path: str | Path, frames, dt: float, n: int = 8, t0: float = 0.0
     total = x.shape[0]
     idx = np.unique(np.linspace(0, total - 1, min(n, total)).round().astype(int))
     h, w = x.shape[2], x.shape[3]
-    fig, axes = plt.subplots(1, len(idx), figsize=(1.6 * len(idx) * max(w / h, 0.5), 2.0), squeeze=False)
+    per = min(1.6 * max(w / h, 0.5), 14.0 / len(idx))  # inches per frame; the strip stays under ~14 in
+    fig, axes = plt.subplots(1, len(idx), figsize=(per * len(idx), max(per * h / w, 1.0) + 0.7), squeeze=False)
     lo, hi = float(x.min()), float(x.max())
     for ax, i in zip(axes[0], idx):
         img = x[i]
@@ -183,7 +185,7 @@ def plot_frames(path: str | Path, frames, dt: float, n: int = 8, t0: float = 0.0
         ax.set_title(f"t={t0 + i * dt:.2f}s", fontsize=8)
         ax.set_xticks([])
         ax.set_yticks([])
-    fig.suptitle(f"preprocessed frames ({total} frames, {h}x{w}, dt {dt:.4g} s)", fontsize=9)
+    fig.suptitle(f"preprocessed frames ({total} frames of {w}x{h} pixels (WxH), dt {dt:.4g} s)", fontsize=9)
     return _save(fig, path)
 
 

@@ -165,11 +165,20 @@ def test_run_writes_the_folder_and_json_goes_to_stdout(video, tmp_path, capsys):
     assert len(fit.runs[0].history["loss"]) == fit.runs[0].steps
 
 
-def test_quiet_prints_only_the_table(video, tmp_path, capsys):
-    code, out, err = run([video, "--eq", EQ, "--out", tmp_path / "q", "--quiet", *TINY], capsys)
+def test_quiet_prints_only_the_table_and_calibration_is_recorded(video, tmp_path, capsys):
+    code, out, err = run([video, "--eq", EQ, "--out", tmp_path / "q", "--quiet", *TINY,
+                          "--calibrate", "I(0)=1; I(3.5)=0.17"], capsys)
     assert code == 0, err
     assert out.startswith("estimates (mean over") and "gamma" in out
     assert "equation:" not in out and "fps:" not in out and err == ""
+    assert "calibration: I = " in out
+    report = json.loads((tmp_path / "q" / "result.json").read_text())
+    cal = report["calibration"]
+    assert [p["time"] for p in cal["points"]] == [0.0, 3.5] and set(cal["maps"]) == {"I"}
+    assert cal["maps"]["I"]["a"] != 0 and set(cal["constants"]) == {"gamma"}
+    assert report["trajectory"]["units"] == "physical"
+    z = report["trajectory"]["latent"]
+    assert z[0][0] == pytest.approx(1.0, abs=1e-6)  # the calibrated trajectory passes through the points
 
 
 def test_default_out_dir_is_new_each_time(video, tmp_path, capsys, monkeypatch):
