@@ -121,6 +121,28 @@ class FitResult:
     def load(cls, path: str | Path) -> "FitResult":
         return cls.from_dict(json.loads(Path(path).read_text()))
 
+    def predict(self, n_frames: int, start: int = 0, substeps: int | None = None) -> np.ndarray:
+        """Physics prediction of the latent for n_frames frames from frame `start` on.
+
+        The rollout starts from the encoded latent of the first frames at `start` and uses the
+        estimated constants, so it runs past the end of the training range (and of the video):
+        compare it with `latent[start:]` to see how well the fit extrapolates. Returns (n_frames, d).
+        """
+        import torch
+
+        from fitode.codegen import PhysicsBlock
+        from fitode.eqparse import parse
+
+        system = parse(self.equation, fix=self.fixed, free=list(self.parameters))
+        block = PhysicsBlock(system, integrator=self.settings.get("integrator", "rk4"),
+                             substeps=substeps or self.settings.get("substeps", 1), dtype=torch.float64)
+        block.set_constants(self.values)
+        if not 0 <= start <= len(self.latent) - block.n_context:
+            raise ValueError(f"start must leave {block.n_context} encoded frames to begin from")
+        head = torch.as_tensor(self.latent[start: start + block.n_context], dtype=torch.float64)
+        with torch.no_grad():
+            return block(head[None], n_frames, self.dt)[0].numpy()
+
 
 def _finite_json(obj: Any) -> Any:
     """JSON has no NaN/inf: a failed run's non-finite numbers are written as null."""
