@@ -50,6 +50,7 @@ class TrainConfig:
     settle_factor: float = 0.1
     selection_factor: float = 1.5
     restarts: int = 3
+    workers: int = 1
     seed: int = 0
     device: str = "cpu"
 
@@ -265,12 +266,15 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         raise TrainingError(f"{n_train} training frames are fewer than one window of {config.window} plus one; "
                             "use a longer clip, a smaller --stride or a shorter window")
     inits = restart_inits(system, params, config.restarts, config.seed, init)
-    runs: list[_Run] = []
-    for i, row in enumerate(inits):
-        runs.append(train_run(frames[:n_train], dt, system, params, config, row, index=i,
-                              seed=config.seed * 1000 + i, callback=callback, progress=progress))
-        if runs[-1].record.status == "interrupted":
-            break
+    if config.workers > 1 and len(inits) > 1:
+        runs = _parallel_runs(frames[:n_train], dt, system, params, config, inits, callback, progress)
+    else:
+        runs = []
+        for i, row in enumerate(inits):
+            runs.append(train_run(frames[:n_train], dt, system, params, config, row, index=i,
+                                  seed=config.seed * 1000 + i, callback=callback, progress=progress))
+            if runs[-1].record.status == "interrupted":
+                break
     records = [r.record for r in runs]
     interrupted = any(r.status == "interrupted" for r in records)
     selected = select_runs(records, config.selection_factor)
@@ -295,6 +299,46 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         settings={**asdict(config), "prior": list(config.prior)}, selection_factor=config.selection_factor,
         meta={**(meta or {}), "interrupted": interrupted},
     )
+
+
+def _worker_init() -> None:
+    # one thread per worker: on small tensors, processes scale where intra-op threads do not
+    torch.set_num_threads(1)
+
+
+def _worker_run(args) -> _Run:
+    return train_run(*args[:6], index=args[6], seed=args[7])
+
+
+def _parallel_runs(frames, dt, system, params, config, inits, callback, progress) -> list[_Run]:
+    """Restarts in a pool of spawned processes; the callback sees each run's steps when it ends."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    jobs = [(frames.cpu(), dt, system, params, config, row, i, config.seed * 1000 + i) for i, row in enumerate(inits)]
+    bar = _bar(len(jobs), f"{len(jobs)} runs on {config.workers} workers", progress)
+    runs: list[_Run] = [None] * len(jobs)  # type: ignore[list-item]
+    with ProcessPoolExecutor(config.workers, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=_worker_init) as pool:
+        futures = {pool.submit(_worker_run, job): job[6] for job in jobs}
+        from concurrent.futures import as_completed
+        for fut in as_completed(futures):
+            run = fut.result()
+            runs[futures[fut]] = run
+            if callback is not None:
+                h = run.record.history
+                for k, step in enumerate(h["step"]):
+                    callback(StepInfo(run.record.index, step, h["loss"][k], h["mse"][k], h["kl"][k],
+                                      {n: v[k] for n, v in h["constants"].items()}))
+            if bar is not None:
+                bar.update(1)
+    if bar is not None:
+        bar.close()
+    device = frames.device
+    for run in runs:
+        run.encoder.to(device)
+        run.block.to(device)
+    return runs
 
 
 @torch.no_grad()
