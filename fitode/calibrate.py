@@ -235,7 +235,7 @@ def _scale(analysis, name: str) -> str | None:
 # ----------------------------------------------------------------------------- the trajectory fit
 def refit_constants(system, params: Mapping[str, Any], x: np.ndarray, dt: float, *, start: Mapping[str, float],
                     scale: float = 1.0, flip: bool = False, scale_free: Sequence[str] = (), window: int = 20,
-                    integrator: str = "rk4", substeps: int = 1, steps: int = 300, max_windows: int = 256,
+                    integrator: str = "rk4", substeps: int = 1, steps: int = 150, max_windows: int = 128,
                     seed: int = 0) -> tuple[dict[str, float], float]:
     """Fit the learnable constants so the physics block, rolled out from each window's first
     frames of x (T, d), reproduces the rest of the window. Returns (constants, loss).
@@ -304,7 +304,7 @@ def refit_constants(system, params: Mapping[str, Any], x: np.ndarray, dt: float,
         raise CalibrationError("the equation cannot reproduce the calibrated trajectory from any starting point "
                                "(it leaves the equation's domain); check the calibration values")
     best_vals, best_loss = None, math.inf
-    for cand in finite[:3]:
+    for cand in finite[:2]:
         vals, loss = _refine(make(cand), loss_of, steps)
         if loss < best_loss:
             best_vals, best_loss = vals, loss
