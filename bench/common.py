@@ -1,0 +1,346 @@
+"""What the benchmarks share: where they write, the machine they ran on, a process pool of
+single-threaded workers, a per-step recorder, plain-text tables and small statistics.
+
+Every benchmark module (bench/<name>.py) exposes `add_arguments(parser)` and `run(args) -> int`,
+so `fitode bench NAME` (fitode/cmd_bench.py) and `python bench/<name>.py` parse the same flags;
+`script_main` is the second of those entry points.
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import math
+import multiprocessing as mp
+import os
+import platform
+import resource
+import subprocess
+import sys
+import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping, Sequence
+
+import numpy as np
+
+BENCH_DIR = Path(__file__).resolve().parent
+DEFAULT_OUT = BENCH_DIR / "out"
+
+
+# ----------------------------------------------------------------------------- entry points
+def add_common_arguments(parser: argparse.ArgumentParser, *, workers: int | None = 2) -> None:
+    """--quick, --out and (for benchmarks that run a pool) --workers."""
+    parser.add_argument("--quick", action="store_true",
+                        help="a tiny setting for smoke tests (seconds); its numbers mean nothing")
+    parser.add_argument("--out", default=str(DEFAULT_OUT), metavar="DIR",
+                        help=f"folder for the JSON record (default {DEFAULT_OUT})")
+    if workers is not None:
+        parser.add_argument("--workers", type=int, default=workers, metavar="N",
+                            help=f"worker processes, each with one torch thread (default {workers})")
+
+
+def script_main(module_doc: str | None, add_arguments: Callable, run: Callable, argv: Sequence[str] | None = None) -> int:
+    """`python bench/<name>.py ...`: the same flags as `fitode bench <name>`, one-line errors."""
+    from fitode.errors import FitodeError
+
+    first = (module_doc or "").strip().splitlines()[0] if module_doc else None
+    parser = argparse.ArgumentParser(description=first, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(parser)
+    args = parser.parse_args(argv)
+    try:
+        return int(run(args) or 0)
+    except FitodeError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+def check_positive(value: int | None, flag: str) -> None:
+    from fitode.errors import FitodeError
+
+    if value is not None and value < 1:
+        raise FitodeError(f"{flag} must be a positive integer, got {value}")
+
+
+# ----------------------------------------------------------------------------- records
+def machine_info() -> dict[str, Any]:
+    """What the numbers depend on: CPUs, load (other processes slow every timing), versions, commit."""
+    import torch
+
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        cpus = os.cpu_count() or 1
+    info = {
+        "date": _dt.datetime.now().isoformat(timespec="seconds"),
+        "cpus": cpus,
+        "load_avg": [round(v, 2) for v in os.getloadavg()],
+        "python": platform.python_version(),
+        "torch": torch.__version__,
+        "numpy": np.__version__,
+        "machine": platform.machine(),
+        "processor": platform.processor() or None,
+        "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
+    }
+    info.update(git_state())
+    return info
+
+
+def git_state() -> dict[str, Any]:
+    try:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=BENCH_DIR, capture_output=True, text=True,
+                              timeout=10)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=BENCH_DIR,
+                               capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return {}
+    if head.returncode != 0:
+        return {}
+    return {"commit": head.stdout.strip(), "dirty": bool(dirty.stdout.strip())}
+
+
+def write_record(record: Mapping[str, Any], out: str | Path, name: str) -> Path:
+    """Write <out>/<name>.json (NaN and inf as null: JSON has neither)."""
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{name}.json"
+    path.write_text(json.dumps(finite_json(record), indent=1))
+    return path
+
+
+def finite_json(obj: Any) -> Any:
+    if isinstance(obj, (float, np.floating)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, np.ndarray):
+        return finite_json(obj.tolist())
+    if isinstance(obj, dict):
+        return {str(k): finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_json(v) for v in obj]
+    return obj
+
+
+def peak_rss_mb() -> float:
+    """This process's peak resident memory so far (Linux reports KiB, macOS bytes)."""
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 2 ** 20 if sys.platform == "darwin" else peak / 1024
+
+
+def current_rss_mb() -> float:
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2 ** 20
+    except OSError:
+        return math.nan
+
+
+# ----------------------------------------------------------------------------- pool
+def single_thread() -> None:
+    """Worker start-up: one torch (and OpenCV) thread, so workers do not fight over the cores."""
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    from fitode.batch.job import single_thread as _one
+
+    _one()
+
+
+def run_pool(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int,
+             on_done: Callable[[int, Any], None] | None = None) -> list[Any]:
+    """fn(task) for every task, in `workers` single-threaded processes (inline when workers == 1).
+
+    Results come back in the order of `tasks`; on_done(index, result) is called as each finishes.
+    fn must be a module-level function of an importable module (the pool pickles it by name).
+    Ctrl-C stops the workers at once rather than letting the running tasks finish.
+    """
+    results: list[Any] = [None] * len(tasks)
+    if workers <= 1 or len(tasks) <= 1:
+        single_thread()
+        for i, task in enumerate(tasks):
+            results[i] = fn(task)
+            if on_done is not None:
+                on_done(i, results[i])
+        return results
+    methods = mp.get_all_start_methods()
+    # forkserver/spawn: a forked copy of a parent whose torch already started threads can deadlock
+    ctx = mp.get_context("forkserver" if "forkserver" in methods else "spawn")
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=ctx, initializer=single_thread)
+    try:
+        futures = {pool.submit(fn, task): i for i, task in enumerate(tasks)}
+        pending = set(futures)
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                i = futures[fut]
+                results[i] = fut.result()
+                if on_done is not None:
+                    on_done(i, results[i])
+    except BaseException:
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            try:
+                proc.terminate()
+            except Exception:  # noqa: BLE001 - already gone
+                pass
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    return results
+
+
+def run_isolated(fn: Callable[[Any], Any], task: Any, threads: int = 1) -> Any:
+    """fn(task) in a fresh process with `threads` torch threads: its peak memory is its own."""
+    methods = mp.get_all_start_methods()
+    ctx = mp.get_context("forkserver" if "forkserver" in methods else "spawn")
+    with ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=set_threads, initargs=(threads,)) as pool:
+        return pool.submit(fn, task).result()
+
+
+def set_threads(n: int) -> None:
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    if n <= 1:
+        single_thread()
+        return
+    import torch
+
+    torch.set_num_threads(int(n))
+
+
+def progress(line: str) -> None:
+    """Progress goes to stderr, so stdout holds only the tables."""
+    print(line, file=sys.stderr, flush=True)
+
+
+# ----------------------------------------------------------------------------- training records
+@dataclass
+class StepRecorder:
+    """A fitode.fit callback that keeps every step (and when it ended), so even a fit that raised
+    (every restart failed) leaves its history, and per-step times can be read afterwards."""
+
+    names: Sequence[str]
+    step: list[int] = field(default_factory=list)
+    loss: list[float] = field(default_factory=list)
+    mse: list[float] = field(default_factory=list)
+    kl: list[float] = field(default_factory=list)
+    constants: dict[str, list[float]] = field(default_factory=dict)
+    t: list[float] = field(default_factory=list)
+    t0: float = field(default_factory=time.perf_counter)
+
+    def __call__(self, info) -> None:
+        self.t.append(time.perf_counter())
+        self.step.append(info.step)
+        self.loss.append(info.loss)
+        self.mse.append(info.mse)
+        self.kl.append(info.kl)
+        for n in self.names:
+            self.constants.setdefault(n, []).append(float(info.constants.get(n, math.nan)))
+
+    def step_times(self) -> np.ndarray:
+        """Seconds of each step (the first measured from the recorder's creation)."""
+        return np.diff(np.asarray([self.t0, *self.t]))
+
+    def history(self, every: int = 10) -> dict[str, Any]:
+        return thin_history({"step": self.step, "loss": self.loss, "mse": self.mse, "kl": self.kl,
+                             "constants": self.constants}, every)
+
+
+def thin_history(hist: Mapping[str, Any], every: int = 10) -> dict[str, Any]:
+    """Every `every`-th step of a trainer history (and the last), to keep the JSON small."""
+    steps = list(hist.get("step", []))
+    if not steps:
+        return {"step": [], "loss": [], "mse": [], "kl": [], "constants": {}}
+    keep = list(range(0, len(steps), max(int(every), 1)))
+    if keep[-1] != len(steps) - 1:
+        keep.append(len(steps) - 1)
+
+    def pick(series):
+        return [series[i] for i in keep if i < len(series)]
+
+    return {"step": pick(steps), "loss": pick(hist.get("loss", [])), "mse": pick(hist.get("mse", [])),
+            "kl": pick(hist.get("kl", [])),
+            "constants": {k: pick(v) for k, v in (hist.get("constants") or {}).items()}}
+
+
+# ----------------------------------------------------------------------------- statistics
+def mean_std(values: Iterable[float]) -> tuple[float, float, int]:
+    """Mean and (population) standard deviation of the finite values, and how many there were."""
+    v = np.asarray([x for x in values if x is not None and math.isfinite(x)], dtype=float)
+    if v.size == 0:
+        return math.nan, math.nan, 0
+    return float(v.mean()), float(v.std()), int(v.size)
+
+
+def rel_err(value: float, truth: float) -> float:
+    """Signed relative error (value - truth) / |truth|."""
+    if value is None or not math.isfinite(value) or truth == 0:
+        return math.nan
+    return (value - truth) / abs(truth)
+
+
+def pm(mean: float, std: float, digits: int = 3) -> str:
+    if not math.isfinite(mean):
+        return "-"
+    return f"{mean:.{digits}f} +- {std:.{digits}f}" if math.isfinite(std) else f"{mean:.{digits}f}"
+
+
+def pct(x: float, digits: int = 2, signed: bool = True) -> str:
+    if x is None or not math.isfinite(x):
+        return "-"
+    return f"{100 * x:+.{digits}f}%" if signed else f"{100 * x:.{digits}f}%"
+
+
+def num(x: Any, digits: int = 3) -> str:
+    if x is None:
+        return "-"
+    if isinstance(x, (int, np.integer)):
+        return str(int(x))
+    x = float(x)
+    if not math.isfinite(x):
+        return "-"
+    return f"{x:.{digits}g}" if abs(x) >= 1e4 or (x != 0 and abs(x) < 1e-3) else f"{x:.{digits}f}"
+
+
+# ----------------------------------------------------------------------------- tables
+def format_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str]],
+                 title: str | None = None) -> str:
+    """A plain-text table. columns: (header, key) pairs; each row's values are already strings
+    (or are str()-ed). Text columns are left-aligned, the rest right-aligned."""
+    cells = [[str(r.get(key, "")) for _, key in columns] for r in rows]
+    heads = [h for h, _ in columns]
+    widths = [max([len(h)] + [len(c[j]) for c in cells]) for j, h in enumerate(heads)]
+    numeric = [all(_looks_numeric(c[j]) for c in cells) for j in range(len(heads))]
+
+    def line(vals):
+        return "  ".join(v.rjust(w) if n else v.ljust(w) for v, w, n in zip(vals, widths, numeric)).rstrip()
+
+    out = [title] if title else []
+    out += [line(heads), "  ".join("-" * w for w in widths)]
+    out += [line(c) for c in cells]
+    return "\n".join(out)
+
+
+def _looks_numeric(text: str) -> bool:
+    t = text.strip().replace("+-", "").replace("%", "").replace("/", "").replace(" ", "")
+    if t in ("", "-"):
+        return True
+    try:
+        float(t.lstrip("+"))
+        return True
+    except ValueError:
+        return False
+
+
+def all_finite(values: Iterable[Any]) -> bool:
+    """True when every number in values (nested lists/dicts walked) is finite."""
+    for v in values:
+        if isinstance(v, Mapping):
+            if not all_finite(v.values()):
+                return False
+        elif isinstance(v, (list, tuple)):
+            if not all_finite(v):
+                return False
+        elif isinstance(v, (float, int, np.floating, np.integer)) and not isinstance(v, bool):
+            if not math.isfinite(float(v)):
+                return False
+    return True

@@ -1,0 +1,170 @@
+"""The benchmarks (bench/) and `fitode bench`: each runs with --quick, prints its table with finite
+numbers and writes its JSON; the command finds, lists and refuses benchmarks in one line."""
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fitode import cli
+
+ROOT = Path(__file__).resolve().parents[1]
+BENCH = ROOT / "bench"
+sys.path.insert(0, str(BENCH))
+
+import common as bc  # noqa: E402
+import paper_synthetic  # noqa: E402
+import realistic  # noqa: E402
+
+
+def _finite(*values) -> bool:
+    return all(v is not None and math.isfinite(float(v)) for v in values)
+
+
+def test_paper_synthetic_quick(tmp_path, capsys):
+    # two workers: the process pool must be able to re-import the module `fitode bench` loaded
+    assert cli.main(["bench", "paper-synthetic", "--quick", "--out", str(tmp_path), "--workers", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "g0 mean +- std" in out and "paper g0" in out and "every run" in out
+    assert "3.943 +- 0.008" in out  # the paper's motion g0 beside ours
+    rec = json.loads((tmp_path / "paper_synthetic.json").read_text())
+    assert rec["quick"] is True
+    kl = [s for s in rec["summaries"] if s["variant"] == "kl"]
+    ablation = [s for s in rec["summaries"] if s["variant"] == "no-kl"]
+    assert [s["dataset"] for s in kl] == list(paper_synthetic.DATASETS)
+    assert len(ablation) == 3
+    for s in rec["summaries"]:
+        assert _finite(s["g0"]["mean"], s["g0"]["std"], s["g1"]["mean"], s["g1"]["std"], s["steps_mean"],
+                       s["wall_sum_s"])
+    runs = rec["runs"]
+    assert len(runs) == 3 * 2 + 3 * 1
+    # every initialisation of a dataset is its own single-restart fit from its own start
+    assert {tuple(sorted(r["init"].items())) for r in runs if r["variant"] == "kl"} == \
+        {tuple(sorted(i.items())) for i in rec["settings"]["initialisations"][:2]}
+    assert all(r["steps"] == 20 and _finite(r["final"]["g0"], r["final"]["g1"], r["wall_s"]) for r in runs)
+    assert all(r["history"]["step"][-1] == r["steps"] for r in runs)
+    # the report can be printed again from the JSON alone
+    assert cli.main(["bench", "paper-synthetic", "--report", str(tmp_path / "paper_synthetic.json")]) == 0
+    assert "every run" in capsys.readouterr().out
+
+
+def test_initialisations_spread_over_the_range():
+    inits = paper_synthetic.initialisations(7, seed=0)
+    assert len(inits) == 7
+    for name in ("g0", "g1"):
+        vals = np.array([i[name] for i in inits])
+        assert np.all((vals > -10) & (vals < 10))
+        # one start in each seventh of [-10, 10]
+        assert sorted(np.floor((vals + 10) / (20 / 7)).astype(int).tolist()) == list(range(7))
+    assert paper_synthetic.initialisations(7, seed=0) == inits
+    assert paper_synthetic.initialisations(7, seed=1) != inits
+
+
+def test_speed_quick(tmp_path, capsys):
+    assert cli.main(["bench", "speed", "--quick", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "per-frame" in out and "per-window" in out and "per-window / per-frame" in out
+    rec = json.loads((tmp_path / "speed.json").read_text())
+    rows = rec["rows"]
+    assert {r["mode"] for r in rows} == {"per-frame", "per-window"}
+    for r in rows:
+        assert _finite(r["step_s"], r["epoch_s"], r["converge_s"], r["peak_rss_mb"]) and r["step_s"] > 0
+    pf = next(r for r in rows if r["mode"] == "per-frame")
+    pw = next(r for r in rows if r["mode"] == "per-window")
+    # per-window encodes every window's frames: more frames per step, the same loss
+    assert pw["frames_encoded_per_step"] == pw["windows"] * 20 > pf["frames_encoded_per_step"] == pf["frames"]
+    assert pw["loss_match"] < 1e-3
+    assert all(_finite(q["step"], q["epoch"], q["converge"]) for q in rec["ratios"])
+
+
+def test_realistic_quick(tmp_path, capsys):
+    assert cli.main(["bench", "realistic", "--quick", "--out", str(tmp_path), "--workers", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "paper (real data)" in out
+    rec = json.loads((tmp_path / "realistic.json").read_text())
+    assert [r["scene"] for r in rec["rows"]] == list(realistic.SPEC)
+    done = [v for v in rec["videos"] if v["status"] == "complete"]
+    assert done  # a failed video is listed under the table, not hidden
+    for v in done:
+        assert _finite(v["estimate"], v["raw"], v["truth"], v["fit_s"])
+    for r in rec["rows"]:
+        assert _finite(r["truth"], r["paper"], r["paper_rel_err"])
+        if r["n"]:
+            assert _finite(r["mean"], r["std"])
+    for v in rec["videos"]:
+        if v["status"] != "complete":
+            assert f"{v['scene']} {v['setting']:g} seed {v['seed']}: {v['status']}" in out
+
+
+def test_calibration_points_pick_the_extremes_among_kept_frames():
+    from fitode.calibrate import parse_calibration
+    from fitode.synth import scene
+
+    v = scene("pendulum", 0.45, size=(36, 64), duration=1.0, seed=1)
+
+    class Clip:  # what read_video would say with stride 3
+        fps = 60.0
+        frame_indices = np.arange(0, 60, 3)
+
+    text = realistic.calibration_points(Clip, v, "theta")
+    pts = parse_calibration(text, ["theta"])
+    kept = v.latent[Clip.frame_indices, 0]
+    assert sorted(p.value for p in pts) == pytest.approx([kept.min(), kept.max()])
+    for p in pts:
+        assert round(p.time * 60) % 3 == 0
+
+
+def test_needs_calibration_follows_the_analysis():
+    from fitode.eqfile import resolve
+
+    assert realistic.needs_calibration(resolve(system="led_decay")[0], "gamma")[0] is False
+    assert realistic.needs_calibration(resolve(system="torricelli")[0], "k") == (True, "dependent")
+    assert realistic.needs_calibration(resolve(system="pendulum")[0], "L") == (True, "free-small-amplitude")
+
+
+def test_cmd_bench_lists_and_refuses(tmp_path, capsys, monkeypatch):
+    assert cli.main(["bench", "--list"]) == 0
+    listed = capsys.readouterr().out
+    for name in ("paper-synthetic", "realistic", "speed"):
+        assert name in listed
+    assert "common" not in listed
+    assert cli.main(["bench", "no-such-bench"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no benchmark named 'no-such-bench'" in err[0]
+    assert cli.main(["bench", "speed", "--sizes", "12by20"]) == 2
+    assert "--sizes" in capsys.readouterr().err
+    assert cli.main(["bench", "paper-synthetic", "--datasets", "colour"]) == 2
+    assert "unknown colour" in capsys.readouterr().err
+    monkeypatch.setenv("FITODE_BENCH_DIR", str(tmp_path))
+    assert cli.main(["bench", "speed"]) == 2
+    assert "not a fitode bench/ folder" in capsys.readouterr().err
+
+
+def test_cmd_bench_without_a_checkout(tmp_path, monkeypatch, capsys):
+    from fitode import cmd_bench
+
+    monkeypatch.delenv("FITODE_BENCH_DIR", raising=False)
+    monkeypatch.setattr(cmd_bench, "candidates", lambda: [tmp_path / "bench"])
+    assert cli.main(["bench", "speed"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "source checkout" in err[0]
+
+
+def test_script_entry_point_errors_in_one_line(capsys):
+    # `python bench/realistic.py --scenes volcano`: the same flags as `fitode bench`, a one-line error
+    assert bc.script_main(realistic.__doc__, realistic.add_arguments, realistic.run, ["--scenes", "volcano"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "volcano" in err[0]
+
+
+def test_table_and_finite_helpers():
+    text = bc.format_table([{"a": "x", "b": "1.5"}, {"a": "longer", "b": "-"}], [("name", "a"), ("value", "b")])
+    lines = text.splitlines()
+    assert lines[0].startswith("name") and lines[2].startswith("x ") and lines[2].endswith("1.5")
+    assert bc.all_finite([1.0, {"a": [2, 3.5]}]) and not bc.all_finite([{"a": [math.nan]}])
+    assert bc.finite_json({"x": math.inf, "y": [np.float32(2.0)]}) == {"x": None, "y": [2.0]}
+    assert bc.mean_std([1.0, None, 3.0, math.nan]) == (2.0, 1.0, 2)
