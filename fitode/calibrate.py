@@ -152,8 +152,9 @@ class Calibration:
                 out.append(f"  {name}: {c['before']:.6g} (latent units) -> {c['after']:.6g} (calibrated, "
                            f"x{_ratio(c['after'], c['before'])})")
             else:
-                out.append(f"  {name}: {c['before']:.6g} kept (scale-free); re-fit on the calibrated trajectory "
-                           f"gives {c['refit']:.6g} ({_change(c['refit'], c['before'])})")
+                out.append(f"  {name}: {c['before']:.6g} kept (scale-free); check: re-fitting the best run's "
+                           f"calibrated trajectory moves it {c['best_run_before']:.6g} -> {c['refit']:.6g} "
+                           f"({_change(c['refit'], c['best_run_before'])})")
         out += [f"  note: {n}" for n in self.notes]
         return out
 

@@ -62,9 +62,10 @@ def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rol
         if not finite.all():
             ax.text(0.99, 0.03, "rollout left the finite range", transform=ax.transAxes, ha="right",
                     va="bottom", fontsize=8, color="tab:red")
-    axes[0, 0].legend(loc="best", fontsize=8, framealpha=0.85)
+    # above the axes: inside, a legend hides the very points it explains
+    axes[0, 0].legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, fontsize=8, frameon=False)
     axes[-1, 0].set_xlabel("time (s)")
-    axes[0, 0].set_title("encoded latent and physics rollout")
+    fig.suptitle("encoded latent and physics rollout", fontsize=11)
     return _save(fig, path)
 
 
