@@ -14,8 +14,9 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
+import socket
 from collections import deque
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from multiprocessing.connection import wait as wait_ready
@@ -210,6 +211,7 @@ class RayExecutor:
         self.requested = workers
         self.workers = workers or 0
         self._owns = False
+        self._host = _check_reachable(address) if address else None
 
     def describe(self) -> str:
         where = self.address or "a local Ray instance"
@@ -222,12 +224,15 @@ class RayExecutor:
             kwargs = dict(log_to_driver=False, configure_logging=True, logging_level="WARNING")
             try:
                 if self.address:
-                    ray.init(address=self.address, **kwargs)
+                    # a loopback-only cluster (one started as below) is reached through loopback too;
+                    # Ray would otherwise swap 127.0.0.1 for this machine's public address
+                    with _loopback_only() if self._host in _LOOPBACK else nullcontext():
+                        ray.init(address=self.address, **kwargs)
                 else:
                     with _loopback_only():
                         ray.init(num_cpus=self.requested or available_cpus(), include_dashboard=False, **kwargs)
             except Exception as exc:
-                raise FitodeError(one_line(f"could not start or reach Ray: {exc}")) from None
+                raise FitodeError(one_line(f"could not start or reach Ray: {_ray_reason(exc)}")) from None
             self._owns = True
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.workers = min(self.requested, cpus) if self.requested else cpus
@@ -272,6 +277,26 @@ class RayExecutor:
             self.stop()
 
 
+_LOOPBACK = {"127.0.0.1", "localhost", "::1"}
+
+
+def _check_reachable(address: str) -> str | None:
+    """A typo in --address must fail in seconds: Ray itself retries an unreachable cluster for minutes.
+
+    Returns the address's host (None for "auto" and other forms without host:port)."""
+    rest = address.split("://", 1)[1] if "://" in address else address
+    host, sep, port = rest.rpartition(":")
+    if not sep or not port.isdigit():
+        return None
+    host = host.strip("[]")
+    try:
+        with socket.create_connection((host, int(port)), timeout=10):
+            pass
+    except OSError as exc:
+        raise FitodeError(f"cannot reach a Ray cluster at {address}: {exc.strerror or exc}") from None
+    return host
+
+
 @contextmanager
 def _loopback_only():
     """A private Ray instance must not listen on the network.
@@ -307,9 +332,19 @@ def _ray_main(task: Task) -> JobOutcome:
     return execute_job(task)
 
 
-def _ray_reason(exc: Exception) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else "no message"
+def _ray_reason(exc: BaseException) -> str:
+    """First line of the exception, and of its causes: Ray's wrappers hide the reason (a missing
+    authentication token, say) in __cause__."""
+    parts, texts = [], []
+    while exc is not None and len(parts) < 3:
+        texts.append(str(exc))
+        lines = [ln for ln in str(exc).strip().splitlines() if ln.strip() and "Traceback" not in ln]
+        parts.append(lines[0] if lines else type(exc).__name__)
+        exc = exc.__cause__
+    if any("InvalidAuthToken" in t or "AuthenticationError" in t for t in texts):
+        return (f"{parts[0]}: the cluster wants an authentication token: give it as RAY_AUTH_TOKEN or in "
+                "~/.ray/auth_token (see Ray's token authentication)")
+    return ": ".join(dict.fromkeys(parts))
 
 
 def make_executor(kind: str, workers: int | None = None, address: str | None = None) -> Executor:
