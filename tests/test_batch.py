@@ -6,6 +6,7 @@ kill its worker. The real pipeline on real videos is in test_batch_pipeline.py.
 """
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import os
@@ -447,3 +448,14 @@ def test_progress_bar_counts_done_failed_running(tmp_path, capsys):
     err = capsys.readouterr().err.replace("\r", "\n")
     assert "running=1" in err
     assert "2/2" in err and "done=1, failed=1, running=0" in err
+
+
+@pytest.mark.skipif(importlib.util.find_spec("ray") is None, reason="Ray is not installed")
+def test_unreachable_ray_address_fails_fast_and_writes_nothing(tmp_path, capsys):
+    _video(tmp_path, "a.json", gamma=0.5)
+    m = _csv(tmp_path, [f"a.json,A,{EQ},"])
+    t0 = time.time()
+    assert main(["batch", str(m), "--executor", "ray", "--address", "127.0.0.1:1"]) == 2
+    assert time.time() - t0 < 30
+    assert "cannot reach a Ray cluster at 127.0.0.1:1" in capsys.readouterr().err
+    assert not (tmp_path / "videos-results").exists()
