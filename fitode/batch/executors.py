@@ -147,7 +147,7 @@ class LocalExecutor:
                 while pending and len(running) < self.workers:
                     task = pending.popleft()
                     recv, send = self.context.Pipe(duplex=False)
-                    proc = self.context.Process(target=_isolated_main, args=(send, task), daemon=True)
+                    proc = self.context.Process(target=_isolated_main, args=(send, task))  # may start its own pool
                     proc.start()
                     send.close()
                     running[proc.sentinel] = (proc, recv, task)
