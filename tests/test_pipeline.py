@@ -135,3 +135,15 @@ def test_real_ctrl_c(video, tmp_path):
     report = json.loads((out / "result.json").read_text())
     assert report["status"] == "incomplete"
     assert report["runs"] and report["runs"][0]["steps"] > 0
+
+
+def test_times_are_video_times_after_start(video, tmp_path):
+    """With --start 1, frame 0 is at t = 1 s: latent.png, result.json and --calibrate all use video time."""
+    out = run_video(video, tmp_path / "s", eq=EQ, start=1.0, calibrate="I(1)=1; I(3.5)=0.3", log=None,
+                    **{**TINY, "restarts": 1, "max_steps": 3})
+    traj = out.report["trajectory"]
+    assert traj["time"][0] == pytest.approx(1.0) and out.report["input"]["first_frame_time_s"] == pytest.approx(1.0)
+    assert traj["latent"][0][0] == pytest.approx(1.0, abs=1e-6)
+    with pytest.raises(FitodeError, match="outside the clip"):
+        run_video(video, tmp_path / "s2", eq=EQ, start=1.0, calibrate="I(0.5)=1; I(3.5)=0.3", log=None, **TINY)
+    assert not (tmp_path / "s2").exists()
