@@ -41,6 +41,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     tr.add_argument("--encoder", choices=["mlp", "cnn"], help="frame encoder (default mlp, the paper's)")
     tr.add_argument("--device", choices=["cpu", "cuda"], help="where to train (default cpu)")
     tr.add_argument("--seed", type=int, metavar="N", help="random seed (default 0)")
+    tr.add_argument("--workers", type=_positive_int, metavar="N",
+                    help="run the restarts in N single-threaded processes at once (default 1: one after another)")
     tr.add_argument("--train-fraction", type=float, metavar="F", default=None,
                     help="train on the first fraction of the frames; the rest shows extrapolation (default 1)")
 
@@ -103,7 +105,8 @@ def _finite(v: float) -> bool:
 def train_options(args: argparse.Namespace) -> dict:
     opts = {}
     for flag, key in (("restarts", "restarts"), ("max_steps", "max_steps"), ("window", "window"),
-                      ("integrator", "integrator"), ("encoder", "encoder"), ("device", "device"), ("seed", "seed")):
+                      ("integrator", "integrator"), ("encoder", "encoder"), ("device", "device"), ("seed", "seed"),
+                      ("workers", "workers")):
         v = getattr(args, flag)
         if v is not None:
             opts[key] = v

@@ -178,7 +178,7 @@ def _check_train_options(options: Mapping[str, Any]) -> None:
         raise FitodeError(f"unknown training option(s): {', '.join(sorted(unknown))}")
     if "prior" in options:
         raise FitodeError("give the prior as prior=(mean, std), not as a training option")
-    for key in ("restarts", "max_steps", "window"):
+    for key in ("restarts", "max_steps", "window", "workers"):
         if key in options and (not isinstance(options[key], int) or options[key] < 1):
             raise FitodeError(f"--{key.replace('_', '-')} must be a positive integer, got {options[key]!r}")
     if options.get("window", 3) < 3:

@@ -199,5 +199,5 @@ def test_help_lists_every_flag(capsys):
     for flag in ("--eq", "--eq-file", "--system", "--const", "--free", "--init", "--prior", "--restarts",
                  "--max-steps", "--integrator", "--encoder", "--device", "--seed", "--out", "--quiet", "--json",
                  "--fps", "--start", "--end", "--roi", "--size", "--color", "--stride", "--mask", "--calibrate",
-                 "--train-fraction", "--window"):
+                 "--train-fraction", "--window", "--workers"):
         assert flag in text, flag
