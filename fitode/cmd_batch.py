@@ -40,7 +40,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     d.add_argument("--min-steps", type=int, metavar="N", help="steps before early stopping may stop a restart")
     d.add_argument("--window", type=_positive_int, metavar="N", help="frames per training window (default 20)")
     d.add_argument("--integrator", choices=["rk4", "euler", "symplectic"], help="ODE integrator (default rk4)")
-    d.add_argument("--encoder", choices=["mlp", "cnn"], help="frame encoder (default mlp)")
+    d.add_argument("--encoder", choices=["mlp", "cnn", "linear"], help="frame encoder (default mlp)")
     d.add_argument("--seed", type=int, metavar="N", help="random seed of every job (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or chatter; only errors")
 

@@ -38,7 +38,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     tr.add_argument("--max-steps", type=_positive_int, metavar="N", help="step limit per restart (default 2000)")
     tr.add_argument("--window", type=_positive_int, metavar="N", help="frames per training window (default 20)")
     tr.add_argument("--integrator", choices=["rk4", "euler", "symplectic"], help="ODE integrator (default rk4)")
-    tr.add_argument("--encoder", choices=["mlp", "cnn"], help="frame encoder (default mlp, the paper's)")
+    tr.add_argument("--encoder", choices=["mlp", "cnn", "linear"], help="frame encoder: mlp (default, the paper's), cnn, or linear (an affine map of the pixels: for decays, see README)")
     tr.add_argument("--device", choices=["cpu", "cuda"], help="where to train (default cpu)")
     tr.add_argument("--seed", type=int, metavar="N", help="random seed (default 0)")
     tr.add_argument("--workers", type=_positive_int, metavar="N",

@@ -130,6 +130,6 @@ def test_cli_scene(tmp_path, capsys):
     frames = np.load(out)
     assert frames.shape == (12, 90, 160, 3) and frames.dtype == np.uint8
     rec = synth.read_truth(out)
-    assert rec["truth"] == {"gamma": 0.46} and rec["settings"]["size"] == [90, 160]
+    assert rec["truth"] == {"gamma": 0.46, "c": 0.0} and rec["settings"]["size"] == [90, 160]
     assert "gamma = 0.46" in capsys.readouterr().out
     assert main(["synth", "scene", "led", "--out", str(out)]) == 2

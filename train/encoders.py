@@ -9,6 +9,25 @@ import torch
 from torch import nn
 
 
+class LinearEncoder(nn.Module):
+    """An affine map of the frame: the latent is a weighted sum of pixels.
+
+    It cannot bend the latent, which matters for equations whose solutions map onto solutions
+    of the same equation with other constants under a nonlinear change of variable: if
+    z' = -gamma*z then w = z**p obeys w' = -p*gamma*w, so an MLP can report any decay rate.
+    """
+
+    def __init__(self, in_shape: tuple[int, int, int], dim: int):
+        super().__init__()
+        n_in = in_shape[0] * in_shape[1] * in_shape[2]
+        self.net = nn.Sequential(nn.Flatten(), nn.Linear(n_in, dim))
+        nn.init.normal_(self.net[1].weight, std=n_in ** -0.5)
+        nn.init.zeros_(self.net[1].bias)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net(x)
+
+
 class MLPEncoder(nn.Module):
     """The paper's encoder: three linear layers with ReLU between them, Kaiming init."""
 
@@ -52,7 +71,7 @@ class CNNEncoder(nn.Module):
         return self.head(self.features(x))
 
 
-ENCODERS = {"mlp": MLPEncoder, "cnn": CNNEncoder}
+ENCODERS = {"mlp": MLPEncoder, "cnn": CNNEncoder, "linear": LinearEncoder}
 
 
 def make_encoder(name: str, in_shape: tuple[int, int, int], dim: int) -> nn.Module:

@@ -15,7 +15,7 @@ The dynamics are the physics, not a fit target's approximation:
   mu = 0.21; the block starts near the top, already released t0 seconds before frame 0.
   The truth is alpha (radians) and mu, the shipped file's constants; only their combination
   a (meta["physical"]["a"]) is measurable.
-- led: I' = -gamma I, exact; the sensor is linear (no gamma curve, nothing saturates), so
+- led: I' = -gamma (I - c) with the dark level c = 0, exact; the sensor is linear (no gamma curve, nothing saturates), so
   the pixel values are affine in the LED's brightness; gamma = 2.3, 0.92, 0.46 /s.
 - free_fall: a ball dropped h0 = 0.20 m below a camera looking straight down; its distance
   d = h0 + g t^2 / 2 (d'' = g) and its apparent radius r0 f / d (the dataset's model,
@@ -481,7 +481,7 @@ def _led(gamma, rng, duration, dt, h, w, p) -> _Scene:
         c.image += np.float32(b[i]) * light
 
     return _Scene(background=base, draw=draw, latent=b[:, None], latent_names=("I",),
-                  equation="I' = -gamma*I", system="led_decay", truth={"gamma": gamma},
+                  equation="I' = -gamma*(I - c)", system="led_decay", truth={"gamma": gamma, "c": 0.0},
                   physical={"gamma": gamma, "I0": b0}, state=b[:, None], state_names=("I",))
 
 
