@@ -195,7 +195,7 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     for s, m in maps.items():
         col = result.states.index(s)
         x[:, col] = m.a * latent[:, col] + m.b
-    best = result.runs[result.best].final
+    best = next(r for r in result.runs if r.index == result.best).final
     scale = math.exp(np.mean([math.log(abs(m.a)) for m in maps.values()]))
     flip = any(m.a < 0 for m in maps.values())
     settings = result.settings

@@ -42,7 +42,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     tr.add_argument("--device", choices=["cpu", "cuda"], help="where to train (default cpu)")
     tr.add_argument("--seed", type=int, metavar="N", help="random seed (default 0)")
     tr.add_argument("--workers", type=_positive_int, metavar="N",
-                    help="run the restarts in N single-threaded processes at once (default 1: one after another)")
+                    help="run the restarts in N single-threaded processes at once (default: one per restart, "
+                         "up to the number of cores; 1 runs them one after another with a step-by-step bar)")
     tr.add_argument("--train-fraction", type=float, metavar="F", default=None,
                     help="train on the first fraction of the frames; the rest shows extrapolation (default 1)")
 
@@ -110,6 +111,11 @@ def train_options(args: argparse.Namespace) -> dict:
         v = getattr(args, flag)
         if v is not None:
             opts[key] = v
+    if "workers" not in opts and opts.get("device", "cpu") == "cpu":
+        # small models: one single-threaded process per restart beats intra-op threads, and by far
+        # when the machine is busy (measured on the bundled example: 53 s against 537 s under load)
+        import os
+        opts["workers"] = max(1, min(opts.get("restarts", 3), os.cpu_count() or 1))
     return opts
 
 

@@ -10,6 +10,8 @@ and is reported as failed.
 from __future__ import annotations
 
 import math
+import os
+import signal
 import time
 from dataclasses import asdict, dataclass, field
 from typing import Callable, Mapping
@@ -285,13 +287,14 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
     if not selected:
         errors = "; ".join(f"run {r.index + 1}: {r.error}" for r in records)
         raise TrainingError(f"every run failed ({errors})")
-    best = min(selected, key=lambda i: records[i].loss)
+    by_index = {r.index: r for r in records}  # an interrupted parallel fit may lack some runs
+    best = min(selected, key=lambda i: by_index[i].loss)
     estimates = {}
     for name in system.learnable:
-        vals = np.array([records[i].final[name] for i in selected])
+        vals = np.array([by_index[i].final[name] for i in selected])
         unit = params.get(name, ParamSpec()).unit
         estimates[name] = Estimate(float(vals.mean()), float(vals.std()) if len(vals) > 1 else 0.0, len(vals), unit)
-    latent, rollout = _trajectories(runs[best], frames, dt)
+    latent, rollout = _trajectories(next(r for r in runs if r.record.index == best), frames, dt)
     return FitResult(
         parameters=estimates, runs=records, selected=selected, best=best,
         latent=latent, rollout=rollout, time=np.arange(n_total) * dt, train_frames=n_train, dt=dt,
@@ -313,27 +316,49 @@ def _worker_run(args) -> _Run:
 def _parallel_runs(frames, dt, system, params, config, inits, callback, progress) -> list[_Run]:
     """Restarts in a pool of spawned processes; the callback sees each run's steps when it ends."""
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures import ProcessPoolExecutor, as_completed
 
     jobs = [(frames.cpu(), dt, system, params, config, row, i, config.seed * 1000 + i) for i, row in enumerate(inits)]
     bar = _bar(len(jobs), f"{len(jobs)} runs on {config.workers} workers", progress)
     runs: list[_Run] = [None] * len(jobs)  # type: ignore[list-item]
+    def collect(fut, timeout=None) -> None:
+        run = fut.result(timeout=timeout)
+        runs[futures[fut]] = run
+        if callback is not None:
+            h = run.record.history
+            for k, step in enumerate(h["step"]):
+                callback(StepInfo(run.record.index, step, h["loss"][k], h["mse"][k], h["kl"][k],
+                                  {n: v[k] for n, v in h["constants"].items()}))
+        if bar is not None:
+            bar.update(1)
+
     with ProcessPoolExecutor(config.workers, mp_context=multiprocessing.get_context("spawn"),
                              initializer=_worker_init) as pool:
         futures = {pool.submit(_worker_run, job): job[6] for job in jobs}
-        from concurrent.futures import as_completed
-        for fut in as_completed(futures):
-            run = fut.result()
-            runs[futures[fut]] = run
-            if callback is not None:
-                h = run.record.history
-                for k, step in enumerate(h["step"]):
-                    callback(StepInfo(run.record.index, step, h["loss"][k], h["mse"][k], h["kl"][k],
-                                      {n: v[k] for n, v in h["constants"].items()}))
-            if bar is not None:
-                bar.update(1)
+        try:
+            for fut in as_completed(futures):
+                collect(fut)
+        except KeyboardInterrupt:
+            # a SIGINT sent to this process alone (a terminal's Ctrl-C reaches the workers too):
+            # pass it on, so each run stops where it is and hands back what it had
+            for fut in futures:
+                fut.cancel()  # restarts still queued never start
+            for proc in list(getattr(pool, "_processes", {}).values()):
+                try:
+                    os.kill(proc.pid, signal.SIGINT)
+                except (ProcessLookupError, OSError):
+                    pass
+            for fut in futures:
+                if runs[futures[fut]] is None and not fut.cancelled():
+                    try:
+                        collect(fut, timeout=60)
+                    except Exception:  # a worker that died on the signal has nothing to give
+                        fut.cancel()
+            if not any(r is not None and r.record.status == "interrupted" for r in runs):
+                raise
     if bar is not None:
         bar.close()
+    runs = [r for r in runs if r is not None]
     device = frames.device
     for run in runs:
         run.encoder.to(device)
