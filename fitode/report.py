@@ -235,6 +235,15 @@ def complete_report(report: dict[str, Any], result, analysis, calibration, t0: f
         warnings.append(f"{len(dropped)} of {n_runs} restarts ended with a loss more than "
                         f"{result.selection_factor:g}x the best and were left out of the estimate "
                         f"(runs {', '.join(str(i + 1) for i in dropped)})")
+        elsewhere = [r for r in result.runs if r.index in dropped and any(
+            abs(r.final[n] - e.value) > SPREAD_WARN * max(abs(e.value), 1e-12) for n, e in result.parameters.items())]
+        if elsewhere:
+            ends = "; ".join(f"run {r.index + 1}: " + ", ".join(f"{n}={v:.4g}" for n, v in r.final.items())
+                             for r in elsewhere)
+            # measured on the paper's scale video: an overdamped fit (g1 ~ 14) reached a lower loss
+            # than the true basin, so the lowest loss alone does not settle which basin is right
+            warnings.append(f"restarts left out ended elsewhere ({ends}): the loss may prefer a wrong basin; "
+                            "compare latent.png and params.png, or rerun with more --restarts")
     not_converged = [r.index for r in result.runs if r.status == "ok" and not r.converged]
     if not_converged and len(not_converged) == len([r for r in result.runs if r.status == "ok"]):
         warnings.append("no restart settled before --max-steps; the estimates may still be moving "

@@ -118,6 +118,18 @@ def test_dropped_runs_are_reported():
     rep = base()
     complete_report(rep, res, None, None)
     assert any("left out of the estimate" in w for w in rep["warnings"])
+    # the left-out run ended where the estimate is: no word about another basin
+    assert not any("ended elsewhere" in w for w in rep["warnings"])
+
+
+def test_left_out_runs_that_ended_elsewhere_are_named():
+    res = result(["k", "w"], [{"k": 14.0, "w": 0.3}, {"k": 0.08, "w": 4.0}])
+    res.selected = [0]
+    res.parameters = {"k": Estimate(14.0, 0.0, 1), "w": Estimate(0.3, 0.0, 1, "m")}
+    rep = base()
+    complete_report(rep, res, None, None)
+    [w] = [w for w in rep["warnings"] if "ended elsewhere" in w]
+    assert "run 2: k=0.08, w=4" in w
 
 
 def test_write_json_has_no_nan(tmp_path):
