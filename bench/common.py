@@ -163,9 +163,7 @@ def run_pool(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int,
             if on_done is not None:
                 on_done(i, results[i])
         return results
-    methods = mp.get_all_start_methods()
-    # forkserver/spawn: a forked copy of a parent whose torch already started threads can deadlock
-    ctx = mp.get_context("forkserver" if "forkserver" in methods else "spawn")
+    ctx = _context()
     pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=ctx, initializer=single_thread)
     try:
         futures = {pool.submit(fn, task): i for i, task in enumerate(tasks)}
@@ -189,10 +187,20 @@ def run_pool(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int,
     return results
 
 
+def _context():
+    """forkserver (else spawn): a forked copy of a parent whose torch already started threads can
+    deadlock. The forkserver imports torch and fitode once (fitode.batch.warm, which starts no
+    threads), so each worker starts in milliseconds instead of re-importing them."""
+    if "forkserver" in mp.get_all_start_methods():
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(["fitode.batch.warm"])
+        return ctx
+    return mp.get_context("spawn")
+
+
 def run_isolated(fn: Callable[[Any], Any], task: Any, threads: int = 1) -> Any:
     """fn(task) in a fresh process with `threads` torch threads: its peak memory is its own."""
-    methods = mp.get_all_start_methods()
-    ctx = mp.get_context("forkserver" if "forkserver" in methods else "spawn")
+    ctx = _context()
     with ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=set_threads, initargs=(threads,)) as pool:
         return pool.submit(fn, task).result()
 
@@ -225,10 +233,13 @@ class StepRecorder:
     kl: list[float] = field(default_factory=list)
     constants: dict[str, list[float]] = field(default_factory=dict)
     t: list[float] = field(default_factory=list)
+    cpu: list[float] = field(default_factory=list)
     t0: float = field(default_factory=time.perf_counter)
+    cpu0: float = field(default_factory=time.process_time)
 
     def __call__(self, info) -> None:
         self.t.append(time.perf_counter())
+        self.cpu.append(time.process_time())
         self.step.append(info.step)
         self.loss.append(info.loss)
         self.mse.append(info.mse)
@@ -239,6 +250,11 @@ class StepRecorder:
     def step_times(self) -> np.ndarray:
         """Seconds of each step (the first measured from the recorder's creation)."""
         return np.diff(np.asarray([self.t0, *self.t]))
+
+    def cpu_times(self) -> np.ndarray:
+        """CPU seconds of each step (all threads of this process): less sensitive than wall time
+        to other processes on a busy machine."""
+        return np.diff(np.asarray([self.cpu0, *self.cpu]))
 
     def history(self, every: int = 10) -> dict[str, Any]:
         return thin_history({"step": self.step, "loss": self.loss, "mse": self.mse, "kl": self.kl,

@@ -3,28 +3,34 @@
 fitode's trainer encodes every distinct frame of a batch once per step and gathers the windows
 from that encoded sequence by index (per-frame). The official code of the paper encodes each
 window's frames separately, so a frame is encoded once for every window that contains it
-(per-window: about window-length times the encoder work). Per-window is run here through the
-same trainer with its frame gather swapped for one that returns every window's frames in full
-(frames[window_index]): the encoder sees W x L frames per step, everything else is identical,
-so both modes compute the same loss and gradients (up to float rounding; the table's last
-column checks the losses over the timed steps).
+(per-window, frames[window_index]: about window-length times the encoder work). Both compute
+the same loss (the table's last column checks it at the same weights).
 
 Video: the paper's intensity dataset (fitode.synth.paper_video, damped oscillator, 270 frames
 at dt 0.2 s) at 50x50, and the same frames resized to 64x114 (what `fitode VIDEO` makes of a
-480x270 video: short side 64). Equation text, one restart from the trainer's default start,
-every TrainConfig default (full batch: one step is one pass over all windows, i.e. one epoch).
+480x270 video: short side 64). Equation given as text, every TrainConfig default: the MLP
+encoder, RK4, 20-frame windows, all windows in every step (so one step is one epoch, one pass
+over all windows, unless --batch-windows is given).
 
-For each size and mode, in a fresh process with --threads torch threads (default 2):
-- time per step: the median over the steps after the horizon warm-up (full 20-frame windows);
-  per-frame from the fit below, per-window from a fit of --timing-steps steps (default: warm-up + 50);
-- time per epoch: steps per pass over all windows (1 with the default full batch) x step time;
-- time to a converged estimate: per-frame, a whole fit to the trainer's stopping rule, measured;
-  per-window, estimated as that fit's number of steps, each costing what the per-window run
-  measured for its horizon (the timed steps, then the full-window median): the same loss gives
-  the same steps, and the per-window run to convergence would take many minutes;
-- peak memory: the process's peak RSS, and its rise over the RSS before the fit.
+Measured with --threads torch threads (default 2), each part in a fresh process:
+- time per step: one optimisation step (encode, roll out, loss, backward, Adam) at the full
+  window length, built here from the trainer's parts (encoder, PhysicsBlock, latent_loss, the
+  trainer's optimiser groups) so that only the encoding differs; the two modes alternate, step
+  by step, --reps times, so a busy machine slows both alike; the table gives the minimum (the
+  machine's cost when nothing else runs) and the median. Per epoch: steps per pass over all
+  windows x the minimum.
+- time to a converged estimate: per-frame, `fitode.fit` to the trainer's stopping rule,
+  measured (wall and CPU time); per-window, estimated as that time x the ratio of the two
+  modes' minimum step times (the same loss gives the same steps, each dearer by that ratio; a
+  per-window fit to convergence would take many minutes).
+- peak memory: the peak RSS of a process that loads the frames and takes 5 steps, and its rise
+  over the RSS before the first step.
 
-    python bench/speed.py              # or: fitode bench speed
+Shared machines: other processes slow a 2-thread step far more than their share (the threads
+wait for each other), so the load average is printed beside the numbers; trust the minimum
+and the ratios more than the medians.
+
+    python bench/speed.py              # or: fitode bench speed (about 4 minutes on 2 cores)
     python bench/speed.py --quick      # smoke test
 
 Prints the table and the per-window / per-frame ratios; writes <out>/speed.json.
@@ -35,7 +41,6 @@ import argparse
 import math
 import sys
 import time
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -47,16 +52,16 @@ import common as bc  # noqa: E402
 EQUATION = "z'' + g1*z' + g0*z = 0"
 SIZES = {"50x50": (50, 50), "64x114": (64, 114)}
 MODES = ("per-frame", "per-window")
-FULL = {"n_frames": 270, "sizes": SIZES, "timing_steps": None, "max_steps": None}
-QUICK = {"n_frames": 40, "sizes": {"16x28": (16, 28)}, "timing_steps": 8, "max_steps": 8}
+FULL = {"n_frames": 270, "sizes": SIZES, "reps": 40, "max_steps": None}
+QUICK = {"n_frames": 40, "sizes": {"16x28": (16, 28)}, "reps": 3, "max_steps": 8}
+MEMORY_STEPS = 5
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     bc.add_common_arguments(parser, workers=None)
     parser.add_argument("--threads", type=int, default=None, help="torch threads (default 2; --quick: 1)")
     parser.add_argument("--sizes", default=None, help="comma-separated HxW sizes (default 50x50,64x114)")
-    parser.add_argument("--timing-steps", type=int, default=None,
-                        help="steps of the timing fits (default: the horizon warm-up + 50)")
+    parser.add_argument("--reps", type=int, default=None, help="timed steps per mode (default 40)")
     parser.add_argument("--batch-windows", type=int, default=None,
                         help="windows per step (default: TrainConfig's, all of them)")
 
@@ -75,118 +80,151 @@ def frames_for(size: tuple[int, int], n_frames: int) -> tuple[np.ndarray, float]
     return frames, v.dt
 
 
-@contextmanager
-def per_window_encoding():
-    """Make the trainer encode every frame of every window (the official code's way)."""
+class Stepper:
+    """One optimisation step of the trainer, per-frame or per-window, at the full window length."""
+
+    def __init__(self, frames: np.ndarray, dt: float, mode: str, batch_windows: int | None, seed: int = 0):
+        import torch
+
+        from fitode.api import as_frames
+        from fitode.codegen import PhysicsBlock
+        from fitode.eqparse import parse
+        from fitode.train.encoders import make_encoder, normalise_frames
+        from fitode.train.trainer import TrainConfig
+        from fitode.train.windows import Windows
+
+        self.cfg = cfg = TrainConfig()
+        torch.manual_seed(seed)
+        self.mode, self.dt = mode, float(dt)
+        self.x = normalise_frames(as_frames(frames))
+        system = parse(EQUATION)
+        self.windows = Windows(self.x.shape[0], cfg.window)
+        self.encoder = make_encoder(cfg.encoder, tuple(self.x.shape[1:]), system.dim)
+        self.block = PhysicsBlock(system, {}, integrator=cfg.integrator, substeps=cfg.substeps, init=cfg.init_mode,
+                                  n_windows=self.windows.count)
+        self.first = getattr(self.block, "anchor", self.block.n_context - 1) + 1
+        groups = [{"params": list(self.encoder.parameters()), "lr": cfg.lr}] + self.block.param_groups(lr=cfg.const_lr)
+        self.opt = torch.optim.Adam(groups)
+        self.batch = min(batch_windows or self.windows.count, self.windows.count)
+        self.gen = torch.Generator().manual_seed(seed)
+
+    def loss(self):
+        import torch
+
+        from fitode.train.loss import latent_loss
+        from fitode.train.windows import distinct_frames
+
+        starts = self.windows.starts()
+        if self.batch < self.windows.count:
+            starts = starts[torch.randperm(self.windows.count, generator=self.gen)[: self.batch]]
+        index = self.windows.index(starts)
+        if self.mode == "per-frame":
+            ids, inverse = distinct_frames(index)
+            z = self.encoder(self.x[ids])[inverse]
+        else:  # the official code's way: every window's frames through the encoder
+            z = self.encoder(self.x[index.reshape(-1)]).reshape(*index.shape, -1)
+        pred = self.block(z[:, : self.block.n_context], self.cfg.window, self.dt, window_index=starts)
+        loss, _ = latent_loss(z, pred, self.first, prior=self.cfg.prior, use_kl=self.cfg.use_kl)
+        return loss
+
+    def step(self) -> float:
+        loss = self.loss()
+        self.opt.zero_grad(set_to_none=True)
+        loss.backward()
+        self.opt.step()
+        return float(loss.detach())
+
+    @property
+    def frames_per_step(self) -> int:
+        if self.mode == "per-window":
+            return self.batch * self.cfg.window
+        from fitode.train.windows import distinct_frames
+
+        return int(distinct_frames(self.windows.index(self.windows.starts()[: self.batch]))[0].numel())
+
+
+def time_steps(task: dict[str, Any]) -> dict[str, Any]:
+    """Both modes in one process, steps alternating, so a busy machine slows both alike."""
     import torch
 
-    import fitode.train.trainer as trainer
-
-    original = trainer.distinct_frames
-    calls = [0]
-
-    def every_window_frame(index: torch.Tensor):
-        calls[0] += 1
-        flat = index.reshape(-1)
-        return flat, torch.arange(flat.numel(), device=index.device).reshape(index.shape)
-
-    trainer.distinct_frames = every_window_frame
-    try:
-        yield calls
-    finally:
-        trainer.distinct_frames = original
-
-
-def measure(task: dict[str, Any]) -> dict[str, Any]:
-    """One size and mode, in its own process: a timing fit (and, per-frame, a fit to convergence)."""
-    import fitode
-    from fitode.errors import FitodeError
-    from fitode.train.trainer import TrainConfig
-    from fitode.train.windows import Windows
-
     frames, dt = frames_for(tuple(task["size"]), task["n_frames"])
-    defaults = TrainConfig()
-    warmup = defaults.horizon_warmup
-    steps = task["timing_steps"] or warmup + 50
-    opts = {} if task["batch_windows"] is None else {"batch_windows": task["batch_windows"]}
-    n_windows = Windows(len(frames), defaults.window).count
-    per_step_windows = min(task["batch_windows"] or n_windows, n_windows)
-    # one-time costs (torch's first ops, compiling the equation) must not count against either mode
-    fitode.fit(frames, dt, eq=EQUATION, restarts=1, progress=False, max_steps=2)
-    rss_before = bc.current_rss_mb()
-    out: dict[str, Any] = {"size": task["label"], "mode": task["mode"], "frames": len(frames),
-                           "pixels": int(frames.shape[1] * frames.shape[2]), "windows": n_windows,
-                           "windows_per_step": per_step_windows, "threads": task["threads"],
-                           "rss_before_mb": rss_before}
-
-    def fit(max_steps: int, rec: bc.StepRecorder):
-        return fitode.fit(frames, dt, eq=EQUATION, restarts=1, progress=False, callback=rec,
-                          max_steps=max_steps, **opts)
-
-    rec = bc.StepRecorder(names=("g0", "g1"))
-    t0 = time.perf_counter()
-    if task["mode"] == "per-window":
-        with per_window_encoding() as calls:
-            try:
-                fit(steps, rec)
-            except FitodeError as exc:
-                out["error"] = str(exc)
-        if calls[0] == 0:
-            raise RuntimeError("the trainer no longer gathers windows through distinct_frames: "
-                               "bench/speed.py cannot swap in per-window encoding; update it")
-        out["frames_encoded_per_step"] = per_step_windows * defaults.window
-    else:  # one fit to the stopping rule: its steps are timed too
-        try:
-            result = fit(task["max_steps"] or defaults.max_steps, rec)
-            run = result.runs[0]
-            out.update(converge_steps=run.steps, converged=run.converged, estimate=dict(run.final))
-        except FitodeError as exc:
-            out.update(converge_steps=len(rec.step), converged=False, error=str(exc))
-        out["converge_s"] = time.perf_counter() - t0
-        out["frames_encoded_per_step"] = len(frames) if task["batch_windows"] is None else None
-    times = rec.step_times()
-    full = times[warmup:] if len(times) > warmup + 5 else times  # quick settings never leave the warm-up
-    out.update(timing_steps=len(times), step_s=float(np.median(full)),
-               warmup_step_s=float(np.mean(times[:warmup])) if len(times) else math.nan,
-               full_window_steps=len(full), epoch_s=float(np.median(full)) * n_windows / per_step_windows,
-               losses=rec.loss, step_times=times.tolist())
-    out["peak_rss_mb"] = bc.peak_rss_mb()
-    out["rss_increase_mb"] = out["peak_rss_mb"] - rss_before
+    steppers = {m: Stepper(frames, dt, m, task["batch_windows"]) for m in MODES}
+    with torch.no_grad():  # same initial weights (same seed): the same loss, whichever encoding
+        first = {m: float(s.loss()) for m, s in steppers.items()}
+    for s in steppers.values():
+        for _ in range(2):  # allocator and first-use costs
+            s.step()
+    wall = {m: [] for m in MODES}
+    cpu = {m: [] for m in MODES}
+    for _ in range(task["reps"]):
+        for m, s in steppers.items():
+            t0, c0 = time.perf_counter(), time.process_time()
+            s.step()
+            wall[m].append(time.perf_counter() - t0)
+            cpu[m].append(time.process_time() - c0)
+    out = {}
+    for m, s in steppers.items():
+        out[m] = {"frames_encoded_per_step": s.frames_per_step, "windows": s.windows.count,
+                  "windows_per_step": s.batch, "step_min_s": min(wall[m]), "step_median_s": float(np.median(wall[m])),
+                  "step_cpu_min_s": min(cpu[m]), "step_times": wall[m], "first_loss": first[m]}
+    out["loss_diff"] = abs(first["per-window"] - first["per-frame"]) / max(abs(first["per-frame"]), 1e-12)
     return out
 
 
-def estimate_converge_s(per_window: dict[str, Any], n_steps: int) -> float:
-    """Seconds per-window encoding would need for n_steps: its measured steps, then its full-window median."""
-    times = per_window["step_times"]
-    if n_steps <= len(times):
-        return float(sum(times[:n_steps]))
-    return float(sum(times) + (n_steps - len(times)) * per_window["step_s"])
+def peak_memory(task: dict[str, Any]) -> dict[str, Any]:
+    """Peak RSS of a fresh process that loads the frames and takes a few steps in one mode."""
+    frames, dt = frames_for(tuple(task["size"]), task["n_frames"])
+    s = Stepper(frames, dt, task["mode"], task["batch_windows"])
+    before = bc.current_rss_mb()
+    for _ in range(MEMORY_STEPS):
+        s.step()
+    peak = bc.peak_rss_mb()
+    return {"rss_before_mb": before, "peak_rss_mb": peak, "rss_rise_mb": peak - before}
 
 
-def loss_match(a: list[float], b: list[float]) -> float:
-    """Largest relative difference between two loss histories over their common steps."""
-    n = min(len(a), len(b))
-    if n == 0:
-        return math.nan
-    x, y = np.asarray(a[:n]), np.asarray(b[:n])
-    return float(np.max(np.abs(x - y) / np.maximum(np.abs(x), 1e-12)))
+def converge(task: dict[str, Any]) -> dict[str, Any]:
+    """A real per-frame fit (fitode.fit, one restart, defaults) to the trainer's stopping rule."""
+    import fitode
+    from fitode.errors import FitodeError
+
+    frames, dt = frames_for(tuple(task["size"]), task["n_frames"])
+    opts = {} if task["batch_windows"] is None else {"batch_windows": task["batch_windows"]}
+    if task["max_steps"]:
+        opts["max_steps"] = task["max_steps"]
+    rec = bc.StepRecorder(names=("g0", "g1"))
+    t0, c0 = time.perf_counter(), time.process_time()
+    out: dict[str, Any] = {}
+    try:
+        run = fitode.fit(frames, dt, eq=EQUATION, restarts=1, progress=False, callback=rec, **opts).runs[0]
+        out.update(steps=run.steps, converged=bool(run.converged), estimate=dict(run.final))
+    except FitodeError as exc:
+        out.update(steps=len(rec.step), converged=False, error=str(exc))
+    out.update(wall_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0,
+               step_times=rec.step_times().tolist())
+    return out
 
 
 def table(rows: list[dict[str, Any]]) -> str:
     out = []
     for r in rows:
-        out.append({"size": r["size"], "mode": r["mode"], "enc": bc.num(r.get("frames_encoded_per_step")),
-                    "step": bc.num(1e3 * r["step_s"], 1), "warm": bc.num(1e3 * r["warmup_step_s"], 1),
-                    "epoch": bc.num(r["epoch_s"], 3), "csteps": bc.num(r.get("converge_steps")),
-                    "conv": bc.num(r.get("converge_s"), 1) + (" (est.)" if r["mode"] == "per-window" else ""),
-                    "peak": bc.num(r["peak_rss_mb"], 0), "rise": bc.num(r["rss_increase_mb"], 0),
-                    "match": bc.num(r.get("loss_match"), 2) if r["mode"] == "per-window" else ""})
-    cols = [("size", "size"), ("encoding", "mode"), ("frames encoded/step", "enc"), ("ms/step", "step"),
-            ("ms/step warm-up", "warm"), ("s/epoch", "epoch"), ("steps to conv", "csteps"),
-            ("s to converge", "conv"), ("peak RSS MB", "peak"), ("RSS rise MB", "rise"), ("loss diff", "match")]
-    return bc.format_table(out, cols, title="ms/step: median over full-window steps; warm-up: mean over the "
-                                             "horizon warm-up; loss diff: max relative difference of the loss "
-                                             "against per-frame over the timed steps")
+        est = r["mode"] == "per-window"
+        out.append({"size": r["size"], "mode": r["mode"], "enc": bc.num(r["frames_encoded_per_step"]),
+                    "min": bc.num(1e3 * r["step_min_s"], 1), "med": bc.num(1e3 * r["step_median_s"], 1),
+                    "cpu": bc.num(1e3 * r["step_cpu_min_s"], 1), "epoch": bc.num(r["epoch_s"], 3),
+                    "steps": bc.num(r["converge_steps"]),
+                    "conv": bc.num(r["converge_s"], 1) + (" (est.)" if est else ""),
+                    "cpu_conv": "" if est else bc.num(r["converge_cpu_s"], 1),
+                    "peak": bc.num(r["peak_rss_mb"], 0), "rise": bc.num(r["rss_rise_mb"], 0),
+                    "diff": f"{r['loss_diff']:.1e}" if est else ""})
+    cols = [("size", "size"), ("encoding", "mode"), ("frames encoded/step", "enc"), ("ms/step min", "min"),
+            ("ms/step median", "med"), ("CPU ms/step", "cpu"), ("s/epoch", "epoch"), ("steps to conv", "steps"),
+            ("s to converge", "conv"), ("CPU s", "cpu_conv"), ("peak RSS MB", "peak"), ("RSS rise MB", "rise"),
+            ("loss diff", "diff")]
+    return bc.format_table(out, cols, title="ms/step: one optimisation step at the full window, modes alternating "
+                                             "(min: least contended; CPU: process CPU time, all threads, min); "
+                                             "s/epoch = steps per pass over all windows x min; per-window time to "
+                                             "converge = the per-frame fit's time x the ratio of the min step times; loss diff: "
+                                             "relative difference of the loss at the same weights")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -204,54 +242,59 @@ def run(args: argparse.Namespace) -> int:
                 raise FitodeError(f"--sizes: {item} is outside 8..1024 pixels a side")
             sizes[f"{h}x{w}"] = (h, w)
         cfg["sizes"] = sizes
-    if args.timing_steps is not None:
-        cfg["timing_steps"] = args.timing_steps
-    if args.threads is None:  # a smoke test on a busy CI machine: two spinning threads per process only slow it
-        args.threads = 1 if args.quick else 2
-    for value, flag in ((args.threads, "--threads"), (args.timing_steps, "--timing-steps"),
-                        (args.batch_windows, "--batch-windows")):
+    if args.reps is not None:
+        cfg["reps"] = args.reps
+    for value, flag in ((args.threads, "--threads"), (args.reps, "--reps"), (args.batch_windows, "--batch-windows")):
         bc.check_positive(value, flag)
+    threads = args.threads or (1 if args.quick else 2)  # a smoke test on a busy CI machine: 1
     t0 = time.perf_counter()
-    rows = []
+    rows, ratios = [], []
     for label, size in cfg["sizes"].items():
+        base = {"size": size, "n_frames": cfg["n_frames"], "batch_windows": args.batch_windows}
+        bc.progress(f"speed {label}: step times ({cfg['reps']} alternating steps per mode) ...")
+        steps = bc.run_isolated(time_steps, {**base, "reps": cfg["reps"]}, threads=threads)
+        mem = {}
         for mode in MODES:
-            bc.progress(f"speed: {label} {mode} ...")
-            r = bc.run_isolated(measure, {"label": label, "size": size, "mode": mode, "n_frames": cfg["n_frames"],
-                                          "timing_steps": cfg["timing_steps"], "max_steps": cfg["max_steps"],
-                                          "batch_windows": args.batch_windows, "threads": args.threads},
-                                threads=args.threads)
+            bc.progress(f"speed {label}: peak memory, {mode} ...")
+            mem[mode] = bc.run_isolated(peak_memory, {**base, "mode": mode}, threads=threads)
+        bc.progress(f"speed {label}: per-frame fit to convergence ...")
+        conv = bc.run_isolated(converge, {**base, "max_steps": cfg["max_steps"]}, threads=threads)
+        for mode in MODES:
+            s = steps[mode]
+            r = {"size": label, "mode": mode, **{k: v for k, v in s.items()}, **mem[mode],
+                 "epoch_s": s["step_min_s"] * s["windows"] / s["windows_per_step"],
+                 "converge_steps": conv["steps"], "loss_diff": steps["loss_diff"]}
+            if mode == "per-frame":
+                r.update(converge_s=conv["wall_s"], converge_cpu_s=conv["cpu_s"], converged=conv["converged"],
+                         estimate=conv.get("estimate"), converge_step_times=conv["step_times"])
             rows.append(r)
-            bc.progress(f"  {1e3 * r['step_s']:.1f} ms/step, peak RSS {r['peak_rss_mb']:.0f} MB")
-    ratios = []
-    for label in cfg["sizes"]:
-        pf = next(r for r in rows if r["size"] == label and r["mode"] == "per-frame")
-        pw = next(r for r in rows if r["size"] == label and r["mode"] == "per-window")
-        pw["loss_match"] = loss_match(pf["losses"], pw["losses"])
-        pw["converge_steps"] = pf.get("converge_steps")
-        pw["converge_s"] = estimate_converge_s(pw, int(pf.get("converge_steps") or 0))
-        ratios.append({"size": label, "step": pw["step_s"] / pf["step_s"], "epoch": pw["epoch_s"] / pf["epoch_s"],
-                       "converge": pw["converge_s"] / pf["converge_s"] if pf.get("converge_s") else math.nan,
+        pf, pw = rows[-2], rows[-1]
+        # the same loss takes the same steps, each dearer by the ratio of the least-contended step times
+        pw["converge_s"] = conv["wall_s"] * pw["step_min_s"] / pf["step_min_s"]
+        ratios.append({"size": label, "step": pw["step_min_s"] / pf["step_min_s"],
+                       "step_median": pw["step_median_s"] / pf["step_median_s"],
+                       "step_cpu": pw["step_cpu_min_s"] / pf["step_cpu_min_s"], "epoch": pw["epoch_s"] / pf["epoch_s"],
+                       "converge": pw["converge_s"] / pf["converge_s"],
                        "peak_rss": pw["peak_rss_mb"] / pf["peak_rss_mb"],
-                       "rss_rise": pw["rss_increase_mb"] / pf["rss_increase_mb"] if pf["rss_increase_mb"] > 0 else math.nan})
+                       "rss_rise": pw["rss_rise_mb"] / pf["rss_rise_mb"] if pf["rss_rise_mb"] > 0 else math.nan})
     wall = time.perf_counter() - t0
     machine = bc.machine_info()
     print(table(rows))
     print()
     for q in ratios:
-        print(f"{q['size']}: per-window / per-frame = {q['step']:.1f}x per step, {q['epoch']:.1f}x per epoch, "
-              f"{q['converge']:.1f}x to converge (est.), {q['peak_rss']:.2f}x peak RSS ({q['rss_rise']:.1f}x its rise)")
+        print(f"{q['size']}: per-window / per-frame = {q['step']:.1f}x per step (min; median {q['step_median']:.1f}x, "
+              f"CPU {q['step_cpu']:.1f}x), {q['epoch']:.1f}x per epoch, {q['converge']:.1f}x to converge, "
+              f"{q['peak_rss']:.2f}x peak RSS ({q['rss_rise']:.1f}x its rise)")
     for r in rows:
-        if r["mode"] == "per-frame" and "estimate" in r:
+        if r["mode"] == "per-frame" and r.get("estimate"):
             e = r["estimate"]
-            print(f"{r['size']} per-frame fit: g0 = {e['g0']:.4f}, g1 = {e['g1']:.4f} after {r['converge_steps']} steps "
-                  f"({'converged' if r['converged'] else 'step limit'})")
-    print(f"{args.threads} torch thread(s), {machine['cpus']} CPUs, load {machine['load_avg'][0]}: {wall:.0f} s wall")
-    for r in rows:  # the JSON keeps the per-step times, not the loss series used for the check
-        r.pop("losses", None)
+            print(f"{r['size']} per-frame fit: g0 = {e['g0']:.4f}, g1 = {e['g1']:.4f} after {r['converge_steps']} "
+                  f"steps ({'converged' if r['converged'] else 'step limit'}), {r['converge_s']:.1f} s")
+    print(f"{threads} torch thread(s), {machine['cpus']} CPUs, load average {machine['load_avg']}: {wall:.0f} s wall")
     record = {"bench": "speed", "quick": bool(args.quick), "equation": EQUATION,
               "settings": {"n_frames": cfg["n_frames"], "sizes": {k: list(v) for k, v in cfg["sizes"].items()},
-                           "timing_steps": cfg["timing_steps"], "threads": args.threads,
-                           "batch_windows": args.batch_windows},
+                           "reps": cfg["reps"], "threads": threads, "batch_windows": args.batch_windows,
+                           "memory_steps": MEMORY_STEPS},
               "rows": rows, "ratios": ratios, "wall_s": wall, "machine": machine}
     path = bc.write_record(record, args.out, "speed")
     print(f"wrote {path}")
