@@ -25,7 +25,8 @@ class _Parser(argparse.ArgumentParser):
     """argparse that reports bad flags in one line with status 2 (argparse prints usage too)."""
 
     def error(self, message: str) -> None:  # noqa: D401
-        raise FitodeError(f"{self.prog}: {message}")
+        # main() already prefixes "fitode: error:"; name the verb only when there is one
+        raise FitodeError(message if self.prog == "fitode" else f"{self.prog}: {message}")
 
 
 def build_parser(verb: str) -> argparse.ArgumentParser:
