@@ -9,6 +9,7 @@ import argparse
 import sys
 
 from fitode.errors import FitodeError
+from fitode.options import positive_int
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -18,7 +19,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     ex = p.add_argument_group("where jobs run")
     ex.add_argument("--executor", choices=["local", "ray"], default="local",
                     help="local: a process pool on this machine (default); ray: a Ray cluster")
-    ex.add_argument("--workers", type=_positive_int, metavar="N",
+    ex.add_argument("--workers", type=positive_int, metavar="N",
                     help="jobs at once (default: the usable CPU cores; on Ray: the cluster's CPUs)")
     ex.add_argument("--address", metavar="ADDR", help="Ray cluster to join, e.g. ray://head:10001 or auto "
                     "(default: start a private local Ray instance)")
@@ -35,24 +36,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     eq.add_argument("--system", metavar="NAME", help="a shipped equation file by name")
     d.add_argument("--fps", type=float, metavar="F", help="real frame rate")
     d.add_argument("--stride", metavar="K|auto", help="frame stride (default auto)")
-    d.add_argument("--restarts", type=_positive_int, metavar="N", help="restarts per video (default 3)")
-    d.add_argument("--max-steps", type=_positive_int, metavar="N", help="step limit per restart (default 2000)")
+    d.add_argument("--restarts", type=positive_int, metavar="N", help="restarts per video (default 3)")
+    d.add_argument("--max-steps", type=positive_int, metavar="N", help="step limit per restart (default 2000)")
     d.add_argument("--min-steps", type=int, metavar="N", help="steps before early stopping may stop a restart")
-    d.add_argument("--window", type=_positive_int, metavar="N", help="frames per training window (default 20)")
+    d.add_argument("--window", type=positive_int, metavar="N", help="frames per training window (default 20)")
     d.add_argument("--integrator", choices=["rk4", "euler", "symplectic"], help="ODE integrator (default rk4)")
     d.add_argument("--encoder", choices=["mlp", "cnn", "linear"], help="frame encoder (default mlp)")
     d.add_argument("--seed", type=int, metavar="N", help="random seed of every job (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or chatter; only errors")
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
-    return v
 
 
 def defaults_from_args(args: argparse.Namespace) -> dict:

@@ -13,6 +13,7 @@ import argparse
 import math
 
 from fitode.errors import FitodeError
+from fitode.options import positive_int
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -28,21 +29,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     gen = p.add_argument_group("what to describe")
     gen.add_argument("--integrator", default="rk4", choices=["rk4", "symplectic", "euler", "paper"],
                      help="integrator whose step is described (default rk4; paper = symplectic)")
-    gen.add_argument("--substeps", type=_positive_int, default=1, metavar="N", help="sub-steps per frame (default 1)")
+    gen.add_argument("--substeps", type=positive_int, default=1, metavar="N", help="sub-steps per frame (default 1)")
     gen.add_argument("--init", default="difference", choices=["difference", "backward", "learnable"],
                      help="how the initial state is built from the first frames (default difference)")
-    gen.add_argument("--context", type=_positive_int, metavar="N",
+    gen.add_argument("--context", type=positive_int, metavar="N",
                      help="frames used for the initial state (default: by --init)")
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
-    return v
 
 
 def _assignments(items: list[str]) -> dict[str, float]:

@@ -11,6 +11,7 @@ import json
 import sys
 
 from fitode.errors import FitodeError
+from fitode.options import positive_int
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -34,14 +35,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                          "to report scale-dependent constants in physical units")
 
     tr = p.add_argument_group("training")
-    tr.add_argument("--restarts", type=_positive_int, metavar="N", help="independent restarts (default 3)")
-    tr.add_argument("--max-steps", type=_positive_int, metavar="N", help="step limit per restart (default 2000)")
-    tr.add_argument("--window", type=_positive_int, metavar="N", help="frames per training window (default 20)")
+    tr.add_argument("--restarts", type=positive_int, metavar="N", help="independent restarts (default 3)")
+    tr.add_argument("--max-steps", type=positive_int, metavar="N", help="step limit per restart (default 2000)")
+    tr.add_argument("--window", type=positive_int, metavar="N", help="frames per training window (default 20)")
     tr.add_argument("--integrator", choices=["rk4", "euler", "symplectic"], help="ODE integrator (default rk4)")
     tr.add_argument("--encoder", choices=["mlp", "cnn", "linear"], help="frame encoder: mlp (default, the paper's), cnn, or linear (an affine map of the pixels: for decays, see README)")
     tr.add_argument("--device", choices=["cpu", "cuda"], help="where to train (default cpu)")
     tr.add_argument("--seed", type=int, metavar="N", help="random seed (default 0)")
-    tr.add_argument("--workers", type=_positive_int, metavar="N",
+    tr.add_argument("--workers", type=positive_int, metavar="N",
                     help="run the restarts in N single-threaded processes at once (default: one per restart, "
                          "up to the number of cores; 1 runs them one after another with a step-by-step bar)")
     tr.add_argument("--train-fraction", type=float, metavar="F", default=None,
@@ -72,16 +73,6 @@ def _systems() -> str:
         return ", ".join(list_systems())
     except Exception:  # noqa: BLE001 - help text must never break the command
         return "see fitode/equations/"
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
-    return v
 
 
 def parse_prior(text: str | None) -> tuple[float, float] | None:

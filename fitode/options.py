@@ -1,6 +1,8 @@
 """Small helpers for command-line values shared by the verbs (`--const NAME=VALUE`, `--free NAME`)."""
 from __future__ import annotations
 
+import argparse
+
 import math
 import re
 from collections.abc import Iterable
@@ -56,3 +58,14 @@ def parse_names(items: Iterable[str] | str | None, flag: str = "--free") -> list
         if item not in out:
             out.append(item)
     return out
+
+
+def positive_int(text: str) -> int:
+    """argparse type for counts (--restarts, --max-steps, --window, --workers, ...): an integer >= 1."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
+    return v
