@@ -290,15 +290,16 @@ def run(args: argparse.Namespace) -> int:
     bc.progress(f"paper-synthetic: {len(tasks)} fits on {args.workers} worker(s)")
     t0 = time.perf_counter()
 
-    def done(i, r):
-        f = r["final"]
-        bc.progress(f"  [{sum(x is not None for x in results_box) + 1}/{len(tasks)}] {r['dataset']} "
-                    f"{'KL' if r['variant'] == 'kl' else 'no KL'} init {r['index'] + 1}: g0={f.get('g0', math.nan):.4f} "
-                    f"g1={f.get('g1', math.nan):.4f} {r['steps']} steps {r['wall_s']:.0f} s "
-                    f"{'converged' if r['converged'] else r['status'] if r['status'] != 'ok' else 'not converged'}")
-        results_box[i] = r
+    count = [0]
 
-    results_box: list[Any] = [None] * len(tasks)
+    def done(i, r):
+        count[0] += 1
+        f = r["final"]
+        state = "converged" if r["converged"] else r["status"] if r["status"] != "ok" else "not converged"
+        bc.progress(f"  [{count[0]}/{len(tasks)}] {r['dataset']} {'KL' if r['variant'] == 'kl' else 'no KL'} "
+                    f"init {r['index'] + 1}: g0={f.get('g0', math.nan):.4f} g1={f.get('g1', math.nan):.4f} "
+                    f"{r['steps']} steps {r['wall_s']:.0f} s {state}")
+
     runs = bc.run_pool(fit_task, tasks, args.workers, on_done=done)
     wall = time.perf_counter() - t0
     summaries = summarise_all(runs, datasets)

@@ -33,8 +33,8 @@ Paper numbers: the paper's estimates on its real videos (pendulum L 0.51 / 1.07 
 1.441 / 2.300 / 3.141 m/s^2; LED gamma 2.24 / 0.97 / 0.41; free fall g 15.0 / 9.51 / 10.22 for
 9.8), one row per setting, in the order of SCENES[...].settings.
 
-    python bench/realistic.py                  # or: fitode bench realistic (hours on 2 cores)
-    python bench/realistic.py --videos 1       # one video per setting
+    python bench/realistic.py                  # or: fitode bench realistic (about 70 min on 2 cores)
+    python bench/realistic.py --videos 1       # one video per setting (measured 803 s on 2 busy cores)
     python bench/realistic.py --quick          # smoke test
 
 Prints the table; writes <out>/realistic.json (every video: estimate, raw estimate,
@@ -238,8 +238,8 @@ def print_report(record: dict[str, Any]) -> None:
     for v in failed:
         print(f"  {v['scene']} {v['setting']:g} seed {v['seed']}: {v.get('status')}: {v.get('error')}")
     s = record["settings"]
-    print(f"\n{len(record['videos'])} videos ({s['videos']} per setting), train options "
-          f"{s['train'] or 'TrainConfig defaults'}, {s['workers']} worker(s), {record['machine']['cpus']} CPUs "
+    print(f"\n{len(record['videos'])} videos ({s['videos']} per setting), TrainConfig defaults but the options "
+          f"column, {s['workers']} worker(s), {record['machine']['cpus']} CPUs "
           f"(load {record['machine']['load_avg'][0]}): {record['wall_s']:.0f} s wall")
 
 
