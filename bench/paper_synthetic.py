@@ -17,7 +17,8 @@ true equation (R^2 of its fit by a*z + b*z' + c: any phase, scale and offset sco
 issue's target: mean |relative error| of g0 below 0.5 % and of g1 below 10 %, every
 initialisation converged.
 
-Time: about 25 minutes on 2 busy cores (2 workers; measured 1389 s at load 2-9).
+Time on 2 cores, 2 workers: measured 444 s with the machine otherwise idle, 1389 s while other
+work kept the load average at 2-9.
 
 KL ablation: the same fits with use_kl=False and max_steps = --ablation-steps (default 500:
 the encoder collapses within ~100 steps and the loss then oscillates near zero, so the trainer

@@ -30,7 +30,7 @@ Shared machines: other processes slow a 2-thread step far more than their share 
 wait for each other), so the load average is printed beside the numbers; trust the minimum
 and the ratios more than the medians.
 
-    python bench/speed.py              # or: fitode bench speed (about 4 minutes on 2 cores)
+    python bench/speed.py              # or: fitode bench speed (58 s on 2 idle cores, 4-8 min busy)
     python bench/speed.py --quick      # smoke test
 
 Prints the table and the per-window / per-frame ratios; writes <out>/speed.json.
