@@ -7,6 +7,9 @@ __version__ = "0.1.0"
 # those itself in one line, so silence it before any module opens a video.
 _os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
+from fitode.errors import (CodegenError, ConfigError, EquationError, FitodeError,  # noqa: E402
+                           NonFiniteError, ParameterError, TrainingError)
+
 
 def fit(*args, **kwargs):
     """See fitode.api.fit (imported lazily so `import fitode` does not load torch)."""

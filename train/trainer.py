@@ -21,15 +21,12 @@ import torch
 
 from fitode.codegen import PhysicsBlock
 from fitode.eqparse import FitodeError, OdeSystem, ParamSpec
+from fitode.errors import TrainingError
 
 from .encoders import make_encoder
 from .loss import latent_loss
 from .result import Estimate, FitResult, RunRecord
 from .windows import Windows, distinct_frames
-
-
-class TrainingError(FitodeError):
-    """Training could not produce an estimate (every run failed, too few frames, ...)."""
 
 
 @dataclass

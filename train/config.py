@@ -1,0 +1,145 @@
+"""The training configuration, checked once, here, for every entry point (API, pipeline, batch).
+
+torch-free on purpose: the command line builds its flags and checks options from this module
+without paying for a torch import. The names of encoders, integrators and initial-state schemes
+are listed here and nowhere else; the modules that implement them assert they agree.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+from typing import Any, Mapping
+
+from fitode.errors import ConfigError
+
+ENCODER_NAMES = ("mlp", "cnn", "linear")
+INTEGRATOR_NAMES = ("rk4", "symplectic", "euler")
+INTEGRATOR_ALIASES = {"paper": "symplectic", "semi-implicit": "symplectic", "semi_implicit": "symplectic",
+                      "explicit-euler": "euler"}
+INITIAL_STATE_NAMES = ("difference", "backward", "learnable")
+DEVICE_NAMES = ("cpu", "cuda")
+
+
+@dataclass
+class TrainConfig:
+    """Every training option. Invalid values raise ConfigError (a FitodeError) naming the option.
+
+    window: frames per training window. max_steps: step limit per restart. min_steps: no stop
+    before this step. lr: the encoder's Adam learning rate. const_lr: base learning rate of the
+    constants (scaled per constant, see fitode.codegen.constants). batch_windows: windows per
+    step (None: all). use_kl: the KL term (off only for the paper's ablation). prior: (mean, std)
+    of the latent. integrator, substeps, initial_state: how the physics block rolls out (see
+    fitode.codegen). encoder: the frame encoder's architecture. gauge: learn the scale and
+    offset between latent and physical state where the equation needs them (off: the paper's
+    latent = state). tol, patience, settle_factor: the stopping rule (train/stopping.py).
+    horizon_warmup: steps over which the rollout grows to the whole window. selection_factor:
+    runs whose loss is within this factor of the best are candidates for the estimate.
+    restarts: independent restarts, trained together as one batched model. seed: all randomness.
+    device: cpu or cuda. threads: torch intra-op threads for the fit (None: torch's default).
+    check_every: steps between checks that the loss and constants are finite (each check is a
+    host synchronisation).
+    """
+
+    window: int = 20
+    max_steps: int = 2000
+    min_steps: int = 200
+    lr: float = 1e-4
+    const_lr: float = 0.05
+    batch_windows: int | None = None
+    use_kl: bool = True
+    prior: tuple[float, float] = (0.0, 1.0)
+    integrator: str = "rk4"
+    substeps: int = 1
+    initial_state: str = "difference"
+    encoder: str = "mlp"
+    gauge: bool = True
+    tol: float = 1e-3
+    patience: int = 100
+    horizon_warmup: int = 200
+    settle_factor: float = 0.1
+    selection_factor: float = 1.5
+    restarts: int = 4
+    seed: int = 0
+    device: str = "cpu"
+    threads: int | None = None
+    check_every: int = 10
+
+    def __post_init__(self) -> None:
+        for name in ("window", "max_steps", "restarts", "substeps", "patience", "check_every"):
+            _positive_int(name, getattr(self, name))
+        for name in ("min_steps", "horizon_warmup", "seed"):
+            _int_at_least(name, getattr(self, name), 0)
+        if self.window < 3:
+            raise ConfigError(f"window must be at least 3 frames, got {self.window}")
+        if self.batch_windows is not None:
+            _positive_int("batch_windows", self.batch_windows)
+        if self.threads is not None:
+            _positive_int("threads", self.threads)
+        for name in ("lr", "const_lr", "tol", "settle_factor"):
+            _positive_float(name, getattr(self, name))
+        _positive_float("selection_factor", self.selection_factor)
+        if self.selection_factor < 1:
+            raise ConfigError(f"selection_factor must be at least 1, got {self.selection_factor}")
+        for name in ("use_kl", "gauge"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        self.prior = _prior(self.prior)
+        self.integrator = _choice("integrator", INTEGRATOR_ALIASES.get(self.integrator, self.integrator),
+                                  INTEGRATOR_NAMES)
+        self.initial_state = _choice("initial_state", self.initial_state, INITIAL_STATE_NAMES)
+        self.encoder = _choice("encoder", self.encoder, ENCODER_NAMES)
+        device = str(self.device)
+        if device.split(":")[0] not in DEVICE_NAMES:
+            raise ConfigError(f"unknown device {self.device!r}; use cpu or cuda")
+        self.device = device
+
+    @classmethod
+    def from_options(cls, options: Mapping[str, Any], **fixed: Any) -> "TrainConfig":
+        """A config from user options: unknown names are one ConfigError listing the known ones."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(options) - known)
+        if unknown:
+            raise ConfigError(f"unknown training option(s): {', '.join(unknown)} "
+                              f"(known: {', '.join(sorted(known))})")
+        return cls(**{**options, **fixed})
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["prior"] = list(self.prior)
+        return d
+
+
+def defaults() -> dict[str, Any]:
+    """The default value of every option (for help texts and reports)."""
+    return TrainConfig().as_dict()
+
+
+def _positive_int(name: str, v: Any) -> None:
+    _int_at_least(name, v, 1)
+
+
+def _int_at_least(name: str, v: Any, lo: int) -> None:
+    if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+        what = "a positive integer" if lo == 1 else f"an integer >= {lo}"
+        raise ConfigError(f"{name} must be {what}, got {v!r}")
+
+
+def _positive_float(name: str, v: Any) -> None:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+        raise ConfigError(f"{name} must be a positive number, got {v!r}")
+
+
+def _prior(p: Any) -> tuple[float, float]:
+    try:
+        mean, std = (float(v) for v in p)
+    except (TypeError, ValueError):
+        raise ConfigError(f"prior must be (mean, std), got {p!r}") from None
+    if not (math.isfinite(mean) and math.isfinite(std) and std > 0):
+        raise ConfigError(f"prior must be (mean, std) with a finite mean and std > 0, got {p!r}")
+    return mean, std
+
+
+def _choice(name: str, v: Any, names: tuple[str, ...]) -> str:
+    if v not in names:
+        raise ConfigError(f"unknown {name} {v!r}; choose one of {', '.join(names)}")
+    return v
