@@ -141,7 +141,10 @@ class Calibration:
     notes: list[str] = field(default_factory=list)
 
     def ylabels(self, states: Sequence[str]) -> list[str]:
-        return [f"{s} (calibrated)" if s in self.maps else f"{s} (latent)" for s in states]
+        """Plot axis labels: a calibrated state is in the units its --calibrate values were given in."""
+        from fitode.plots import latent_label
+        return [f"{s}\ncalibrated (units of --calibrate)" if s in self.maps else latent_label(s)
+                for s in states]
 
     def lines(self) -> list[str]:
         out = ["calibration: " + "; ".join(f"{s} = {m.a:.6g}*latent + {m.b:.6g}"

@@ -48,17 +48,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     tr.add_argument("--train-fraction", type=float, metavar="F", default=None,
                     help="train on the first fraction of the frames; the rest shows extrapolation (default 1)")
 
-    vid = p.add_argument_group("video")
-    vid.add_argument("--fps", type=float, metavar="F", help="real frame rate; always wins over the file's "
-                     "(slow-motion clips report their playback rate)")
-    vid.add_argument("--start", type=float, metavar="S", help="first second to use")
-    vid.add_argument("--end", type=float, metavar="S", help="second to stop at")
-    vid.add_argument("--roi", metavar="x,y,w,h", help="crop, in pixels of the source frame")
-    vid.add_argument("--size", metavar="HxW", help="resize to H x W (default: short side about 64)")
-    vid.add_argument("--color", action="store_true", help="keep colour channels (default gray)")
-    vid.add_argument("--stride", metavar="K|auto", default="auto", help="use every K-th frame (dt = K/fps); "
-                     "auto picks it from how much frames change (default)")
-    vid.add_argument("--mask", metavar="PATH", help="mask image or video multiplied with the frames")
+    from fitode.video import add_video_arguments
+    add_video_arguments(p)  # parsed on the spot: args.roi, args.size, args.stride are read_video's values
 
     out = p.add_argument_group("output")
     out.add_argument("--out", metavar="DIR", help="output folder (default a new one under ./fitode-runs/); "

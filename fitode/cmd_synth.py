@@ -58,7 +58,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                          "sliding_block: mu t0; led: I0; free_fall: h0 floor)")
     sc.add_argument("--duration", type=float, default=None, help="seconds (default: the scene's)")
     sc.add_argument("--fps", type=float, default=60.0, help="frames per second (default 60)")
-    sc.add_argument("--size", default="480x270", metavar="WxH", help="frame size (default 480x270)")
+    from fitode.video import parse_size
+    sc.add_argument("--size", type=parse_size, default="480x270", metavar="WxH",
+                    help="frame size, width x height in pixels (default 480x270)")
     sc.add_argument("--noise", type=float, default=1.0, help="sensor noise multiplier (default 1, 0: none)")
     sc.add_argument("--jpeg-quality", type=int, default=85, help="per-frame JPEG quality (default 85, 100: none)")
     _common(sc)
@@ -67,7 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _clean_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--frames", type=int, default=270, help="number of frames (default 270)")
     p.add_argument("--dt", type=float, default=0.2, help="seconds between frames (default 0.2)")
-    p.add_argument("--size", type=int, default=50, help="frame side in pixels (default 50)")
+    p.add_argument("--size", type=int, default=50, help="side of the square frames in pixels (default 50)")
     p.add_argument("--noise", type=float, default=0.0, help="std of Gaussian pixel noise (default 0)")
 
 
@@ -98,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
                                   noise=args.noise)
     else:
         v = synth.scene(args.name, args.setting, seed=args.seed, duration=args.duration, fps=args.fps,
-                        size=_wxh(args.size), noise=args.noise, jpeg_quality=args.jpeg_quality,
+                        size=args.size, noise=args.noise, jpeg_quality=args.jpeg_quality,
                         **_pairs(args.param, "--param"))
     synth.write_video(v, out)
     consts = ", ".join(f"{k} = {val:.6g}" for k, val in v.truth.items())
@@ -132,14 +134,3 @@ def _pairs(items: list[str], flag: str) -> dict[str, float]:
         except ValueError:
             raise FitodeError(f"{flag} {name}: '{value}' is not a number") from None
     return out
-
-
-def _wxh(text: str) -> tuple[int, int]:
-    """'480x270' -> (height 270, width 480)."""
-    w, sep, h = text.lower().partition("x")
-    try:
-        if not sep:
-            raise ValueError
-        return int(h), int(w)
-    except ValueError:
-        raise FitodeError(f"--size wants WIDTHxHEIGHT such as 480x270, got '{text}'") from None

@@ -37,6 +37,9 @@ def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rol
     The rollout starts from the first frames only and runs over the whole clip, so everything
     after the first window is a prediction; frames beyond train_frames were not trained on and are
     shaded as extrapolation.
+
+    ylabels: one axis label per state, for a calibrated latent (its values in physical units);
+    None labels every axis in latent units (see `latent_label`).
     """
     plt = _plt()
     t = np.asarray(time, dtype=float)
@@ -57,7 +60,7 @@ def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rol
         if window and window < len(t):
             ax.axvline(t[window - 1], color="tab:green", lw=0.8, ls=":",
                        label=f"end of the first {window}-frame window: the rollout after it is a prediction")
-        ax.set_ylabel(ylabels[i] if ylabels else f"{states[i]} (latent)")
+        ax.set_ylabel(ylabels[i] if ylabels else latent_label(states[i]))
         ax.grid(alpha=0.3)
         if not finite.all():
             ax.text(0.99, 0.03, "rollout left the finite range", transform=ax.transAxes, ha="right",
@@ -67,6 +70,12 @@ def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rol
     axes[-1, 0].set_xlabel("time (s)")
     fig.suptitle("encoded latent and physics rollout", fontsize=11)
     return _save(fig, path)
+
+
+def latent_label(state: str) -> str:
+    """Axis label of an uncalibrated state. Its scale is whatever the encoder learned (values of
+    +-40 are common), so it must not read as radians or metres."""
+    return f"{state}\nlatent units (not calibrated)"
 
 
 def _limits(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:

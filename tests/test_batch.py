@@ -98,7 +98,7 @@ def test_csv_manifest_types_paths_and_precedence(tmp_path):
     assert a.video == (tmp_path / "clips" / "a b.json").resolve()
     assert a.name == "001-a_b" and c.name == "002-c"
     assert a.setting == "led" and c.setting == "default"
-    assert a.kwargs == {"eq": EQ, "fps": 30.0, "roi": (10, 20, 30, 40), "size": (16, 24), "stride": 3,
+    assert a.kwargs == {"eq": EQ, "fps": 30.0, "roi": (10, 20, 30, 40), "size": (24, 16), "stride": 3,
                         "prior": (1.0, 0.2), "free": ("gamma", "k"), "const": {"k": 2.0},
                         "restarts": 5, "max_steps": 7}
     assert a.truth == {"gamma": 0.8} and c.truth == {}

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from fitode.errors import FitodeError
-from fitode.video import (Clip, VideoError, _container_fps_problem, parse_roi, parse_size,
-                          parse_stride, read_video)
+from fitode.video import Clip, VideoError, parse_roi, parse_size, parse_stride, read_video
+from fitode.video.sources import container_fps_problem
 
 H, W = 30, 40
 SQ = 6  # side of the moving square
@@ -165,12 +165,12 @@ def test_time_base_as_fps_is_refused(tmp_path):
 
 @pytest.mark.parametrize("v", [None, float("nan"), float("inf"), 0.0, -1.0, 10001.0, 90000.0])
 def test_container_fps_problems(v):
-    assert _container_fps_problem(v) is not None
+    assert container_fps_problem(v) is not None
 
 
 @pytest.mark.parametrize("v", [25.0, 29.97, 59.94, 120.0, 240.0, 960.0, 5000.0])
 def test_container_fps_plausible(v):
-    assert _container_fps_problem(v) is None
+    assert container_fps_problem(v) is None
 
 
 # ----------------------------------------------------------------------------- trim, crop, size
@@ -343,7 +343,9 @@ def test_mask_video_too_short(videos, tmp_path):
 
 def test_parsers_accept():
     assert parse_roi(" 1, 2,3 ,4") == (1, 2, 3, 4)
-    assert parse_size("64x32") == (64, 32) and parse_size("64X32") == (64, 32)
+    # typed WxH (width first, like 640x480), returned (H, W) like the frames' shape
+    assert parse_size("64x32") == (32, 64) and parse_size("64X32") == (32, 64)
+    assert parse_size(" 640 × 480 ") == (480, 640)
     assert parse_stride("auto") == "auto" and parse_stride("AUTO") == "auto"
     assert parse_stride("3") == 3 and parse_stride(5) == 5
 
@@ -369,7 +371,7 @@ def test_argparse_flags(videos):
 
     parser = argparse.ArgumentParser()
     add_video_arguments(parser)
-    args = parser.parse_args(["--fps", "50", "--roi", "0,0,20,10", "--size", "5x10", "--stride",
+    args = parser.parse_args(["--fps", "50", "--roi", "0,0,20,10", "--size", "10x5", "--stride",
                               "2", "--start", "0.04", "--color"])
     clip = read_video(videos["avi"], **video_kwargs(args))
     assert clip.frames.shape == (5, 3, 5, 10) and clip.fps == 50 and clip.start_frame == 2

@@ -524,15 +524,13 @@ def _convert_video(key: str, value: Any, src: _Row) -> Any:
         if x < 0 or y < 0 or w < 1 or h < 1:
             raise src.error(key, f"expected x,y >= 0 and w,h >= 1, got {value!r}")
         return (x, y, w, h)
-    if key == "size":
-        parts = value if isinstance(value, list) else re.split(r"[x×,\s]+", str(value).strip().lower())
-        parts = [p for p in parts if str(p) != ""]
-        if len(parts) != 2:
-            raise src.error(key, f"expected HxW, got {value!r}")
-        h, w = (_int(p, src, key) for p in parts)
-        if h < 1 or w < 1:
-            raise src.error(key, f"expected HxW of positive sizes, got {value!r}")
-        return (h, w)
+    if key == "size":  # WxH as typed after `fitode VIDEO --size` (a TOML list: [W, H]) -> (H, W)
+        from fitode.video import VideoError, parse_size
+        text = "x".join(str(_int(p, src, key)) for p in value) if isinstance(value, list) else str(value)
+        try:
+            return parse_size(text)
+        except VideoError:
+            raise src.error(key, f"expected WxH (width x height) in pixels such as 64x48, got {value!r}") from None
     if key == "color":
         return _bool(value, src, key)
     if key == "stride":

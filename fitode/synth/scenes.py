@@ -27,7 +27,7 @@ alpha in degrees, r0, f, ...) in meta["physical"].
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -39,30 +39,6 @@ from fitode.synth.video import SynthVideo
 G = 9.80665
 
 
-@dataclass(frozen=True)
-class SceneInfo:
-    name: str
-    setting: str           # the name of the varied quantity
-    settings: tuple[float, ...]  # the dataset's values
-    unit: str
-    description: str
-    default_duration: float | None  # None: as long as the experiment lasts
-
-
-SCENES: dict[str, SceneInfo] = {
-    "pendulum": SceneInfo("pendulum", "L", (0.45, 0.9, 1.5), "m",
-                          "a pendulum of length L swinging in front of a wall", 4.0),
-    "torricelli": SceneInfo("torricelli", "k", (0.0095, 0.0128, 0.0162), "m^0.5/s",
-                            "a draining tank, a floating ball marking the level", 5.0),
-    "sliding_block": SceneInfo("sliding_block", "alpha", (20.0, 25.0, 30.0), "deg",
-                               "a block sliding down a ramp inclined at alpha (mu = 0.21)", None),
-    "led": SceneInfo("led", "gamma", (2.3, 0.92, 0.46), "1/s",
-                     "an LED whose brightness decays as exp(-gamma t)", 3.0),
-    "free_fall": SceneInfo("free_fall", "r0", (0.0335, 0.06, 0.10), "m",
-                           "a ball of radius r0 falling away from a camera looking down", None),
-}
-
-
 @dataclass
 class _Scene:
     """What a scene builder hands the common camera loop."""
@@ -71,8 +47,6 @@ class _Scene:
     draw: Callable[[R.Canvas, int], None]  # paints frame i's moving parts
     latent: np.ndarray                     # (T, dim)
     latent_names: tuple[str, ...]
-    equation: str
-    system: str                            # the shipped equation file with this equation
     truth: dict[str, float]
     physical: dict[str, float]
     state: np.ndarray | None = None
@@ -118,15 +92,15 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
         raise FitodeError(f"jpeg_quality must be between 1 and 100, got {jpeg_quality}")
     if noise < 0 or blur < 0:
         raise FitodeError("noise and blur must not be negative")
-    builder = _BUILDERS[name]
-    allowed = _PARAMS[name]
-    unknown = set(params) - set(allowed)
+    unknown = set(params) - set(info.params)
     if unknown:
         raise FitodeError(f"scene '{name}' has no parameter {', '.join(sorted(unknown))} "
-                          f"(it takes {', '.join(allowed) or 'none'})")
+                          f"(it takes {', '.join(info.params) or 'none'})")
+    if duration is None:
+        duration = info.default_duration
     rng = np.random.default_rng([int(seed), 17])
     dt = 1.0 / float(fps)
-    sc = builder(setting, rng, duration, dt, h, w, params)
+    sc = info.build(setting, rng, duration, dt, h, w, params)
     n = sc.latent.shape[0]
     frames = np.empty((n, h, w, 3), np.uint8)
     vig = R.vignette(h, w, 0.22)[..., None]
@@ -140,12 +114,12 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
         frames[i] = sensor(cv.image)
     meta = {
         "generator": "scene", "name": name, "setting_name": info.setting, "setting": setting,
-        "setting_unit": info.unit, "system": sc.system, "seed": int(seed), "fps": float(fps), "size": [h, w],
+        "setting_unit": info.unit, "system": info.system, "seed": int(seed), "fps": float(fps), "size": [h, w],
         "duration": n * dt, "noise": noise, "blur": blur, "jpeg_quality": int(jpeg_quality),
         "params": {k: float(v) for k, v in params.items()}, "physical": sc.physical,
         "description": info.description,
     }
-    return SynthVideo(frames=frames, dt=dt, truth=sc.truth, latent=sc.latent, equation=sc.equation,
+    return SynthVideo(frames=frames, dt=dt, truth=sc.truth, latent=sc.latent, equation=info.equation,
                       latent_names=sc.latent_names, state=sc.state, state_names=sc.state_names,
                       meta=meta)
 
@@ -179,12 +153,10 @@ class _Sensor:
         return R.jpeg_roundtrip(u8, self.quality)
 
 
-def _frame_count(duration: float | None, default: float | None, t_max: float, dt: float,
-                 what: str) -> int:
-    """Frames for a requested duration, refusing durations the experiment does not last."""
-    dur = default if duration is None else duration
-    if dur is None:
-        dur = t_max
+def _frame_count(duration: float | None, t_max: float, dt: float, what: str) -> int:
+    """Frames for a requested duration (None: as long as the experiment lasts), refusing
+    durations the experiment does not last."""
+    dur = t_max if duration is None else duration
     if dur > t_max + 1e-9:
         raise FitodeError(f"{what} lasts {t_max:.3f} s; ask for a duration of at most that")
     n = int(np.floor(dur / dt + 1e-9))
@@ -248,11 +220,10 @@ def _pendulum(L, rng, duration, dt, h, w, p) -> _Scene:
 
     if not 0.05 <= L <= 20:
         raise FitodeError(f"pendulum length L must be between 0.05 and 20 m, got {L}")
-    info = SCENES["pendulum"]
     zeta = float(p.get("zeta", 0.05))
     theta0 = np.deg2rad(float(p.get("theta0_deg", rng.uniform(15.0, 35.0))))
     omega0 = float(p.get("omega0", 0.0))
-    n = _frame_count(duration, info.default_duration, np.inf, dt, "the pendulum")
+    n = _frame_count(duration, np.inf, dt, "the pendulum")
     latent, names, state, snames = simulate_system(pendulum_system(), {"L": L, "zeta": zeta},
                                                    {"theta": theta0, "theta'": omega0}, n, dt, substeps=20)
     theta = latent[:, 0]
@@ -283,7 +254,7 @@ def _pendulum(L, rng, duration, dt, h, w, p) -> _Scene:
                 (bx - rb, by - rb, bx + rb, by + rb))
 
     return _Scene(background=cv.image, draw=draw, latent=latent, latent_names=names,
-                  equation=PENDULUM_EQUATION, system="pendulum", truth={"L": L, "zeta": zeta},
+                  truth={"L": L, "zeta": zeta},
                   physical={"g": G, "L": L, "zeta": zeta, "theta0_deg": float(np.rad2deg(theta0)),
                             "omega0": omega0, "pixels_per_metre": ppm, "substeps": 20},
                   state=state, state_names=snames)
@@ -294,14 +265,13 @@ def _pendulum(L, rng, duration, dt, h, w, p) -> _Scene:
 def _torricelli(k, rng, duration, dt, h, w, p) -> _Scene:
     if not 1e-4 <= k <= 1.0:
         raise FitodeError(f"Torricelli k must be between 1e-4 and 1 m^0.5/s, got {k}")
-    info = SCENES["torricelli"]
     h0 = float(p.get("h0", rng.uniform(0.20, 0.26)))
     tank_h, tank_w = 0.30, 0.10
     if not 0.01 <= h0 <= tank_h - 0.01:
         raise FitodeError(f"h0 must be between 0.01 and {tank_h - 0.01} m, got {h0}")
     # stop while a centimetre is left: below that the ball sits on the bottom
     t_max = 2 * (np.sqrt(h0) - np.sqrt(0.01)) / k
-    n = _frame_count(duration, info.default_duration, t_max, dt, "the tank (down to 1 cm)")
+    n = _frame_count(duration, t_max, dt, "the tank (down to 1 cm)")
     t = np.arange(n) * dt
     level = (np.sqrt(h0) - k * t / 2) ** 2
     ppm = 0.62 * h / tank_h
@@ -365,7 +335,7 @@ def _torricelli(k, rng, duration, dt, h, w, p) -> _Scene:
                 (x_r, y_bot - 0.01 * ppm - 3, x_r + wall_t + 3, y_bot - 0.01 * ppm + 3))
 
     return _Scene(background=cv.image, draw=draw, overlay=overlay, latent=level[:, None],
-                  latent_names=("h",), equation="h' = -k*sqrt(h)", system="torricelli", truth={"k": k},
+                  latent_names=("h",), truth={"k": k},
                   physical={"k": k, "h0": h0, "tank_height": tank_h, "g": G, "pixels_per_metre": ppm,
                             "empty_after_s": float(2 * np.sqrt(h0) / k)},
                   state=level[:, None], state_names=("h",))
@@ -387,7 +357,7 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
     t_max = np.sqrt(2 * (ramp - bl - s0) / a) - t0
     if t_max <= 2 * dt:
         raise FitodeError("t0 is too late: the block has already reached the bottom")
-    n = _frame_count(duration, None, t_max, dt, "the slide down the ramp")
+    n = _frame_count(duration, t_max, dt, "the slide down the ramp")
     t = np.arange(n) * dt
     s = s0 + 0.5 * a * (t + t0) ** 2
     v = a * (t + t0)
@@ -426,7 +396,6 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
         c.paint(R.box(centre[0], centre[1], hw, hh, alpha, radius=1.0), shade, bbox)
 
     return _Scene(background=cv.image, draw=draw, latent=s[:, None], latent_names=("x",),
-                  equation="x'' = g*(sin(alpha) - mu*cos(alpha))", system="sliding_block",
                   truth={"alpha": float(alpha), "mu": mu},
                   physical={"a": float(a), "alpha_deg": float(alpha_deg), "mu": mu, "g": G, "t0": t0,
                             "s0": s0, "ramp_length": ramp, "pixels_per_metre": float(ppm)},
@@ -438,11 +407,10 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
 def _led(gamma, rng, duration, dt, h, w, p) -> _Scene:
     if not 0.001 <= gamma <= 100:
         raise FitodeError(f"gamma must be between 0.001 and 100 per second, got {gamma}")
-    info = SCENES["led"]
     b0 = float(p.get("I0", rng.uniform(0.8, 0.95)))
     if not 0 < b0 <= 1:
         raise FitodeError(f"I0 (initial brightness) must be in (0, 1], got {b0}")
-    n = _frame_count(duration, info.default_duration, np.inf, dt, "the LED")
+    n = _frame_count(duration, np.inf, dt, "the LED")
     t = np.arange(n) * dt
     b = b0 * np.exp(-gamma * t)
 
@@ -481,7 +449,7 @@ def _led(gamma, rng, duration, dt, h, w, p) -> _Scene:
         c.image += np.float32(b[i]) * light
 
     return _Scene(background=base, draw=draw, latent=b[:, None], latent_names=("I",),
-                  equation="I' = -gamma*(I - c)", system="led_decay", truth={"gamma": gamma, "c": 0.0},
+                  truth={"gamma": gamma, "c": 0.0},
                   physical={"gamma": gamma, "I0": b0}, state=b[:, None], state_names=("I",))
 
 
@@ -496,7 +464,7 @@ def _free_fall(r0, rng, duration, dt, h, w, p) -> _Scene:
         raise FitodeError(f"need r0 < h0 < floor - r0 (r0 = {r0}, h0 = {h0}, floor = {floor})")
     f = 1451.0 * w / 1920.0
     t_max = np.sqrt(2 * (floor - r0 - h0) / G)
-    n = _frame_count(duration, None, t_max, dt, "the fall to the floor")
+    n = _frame_count(duration, t_max, dt, "the fall to the floor")
     t = np.arange(n) * dt
     dist = h0 + 0.5 * G * t ** 2
     radius = r0 * f / dist
@@ -530,16 +498,46 @@ def _free_fall(r0, rng, duration, dt, h, w, p) -> _Scene:
         c.paint(R.circle(cx, cy, r), col, (cx - r, cy - r, cx + r, cy + r))
 
     return _Scene(background=bg, draw=draw, latent=dist[:, None], latent_names=("d",),
-                  equation="d'' = g", system="free_fall_scale", truth={"g": G},
+                  truth={"g": G},
                   physical={"g": G, "r0": r0, "h0": h0, "floor": floor, "f_px": f,
                             "radius_px_first": float(radius[0]), "radius_px_last": float(radius[-1])},
                   state=np.stack([dist, G * t], axis=1), state_names=("d", "d'"))
 
 
-_BUILDERS = {"pendulum": _pendulum, "torricelli": _torricelli, "sliding_block": _sliding_block,
-             "led": _led, "free_fall": _free_fall}
-_PARAMS = {"pendulum": ("zeta", "theta0_deg", "omega0"), "torricelli": ("h0",),
-           "sliding_block": ("mu", "t0"), "led": ("I0",), "free_fall": ("h0", "floor")}
+@dataclass(frozen=True)
+class SceneInfo:
+    """One scene of the dataset: what it varies, how it is drawn, the equation it obeys."""
+
+    name: str
+    setting: str                 # the name of the varied quantity
+    settings: tuple[float, ...]  # the dataset's values
+    unit: str
+    description: str
+    default_duration: float | None  # None: as long as the experiment lasts
+    params: tuple[str, ...]      # the scene-specific overrides `scene` accepts
+    equation: str                # word for word that of the shipped equation file `system`
+    system: str
+    # (setting, rng, duration, dt, h, w, params) -> _Scene
+    build: Callable[..., _Scene] = field(repr=False, compare=False)
+
+
+SCENES: dict[str, SceneInfo] = {i.name: i for i in (
+    SceneInfo("pendulum", "L", (0.45, 0.9, 1.5), "m",
+              "a pendulum of length L swinging in front of a wall", 4.0,
+              ("zeta", "theta0_deg", "omega0"), PENDULUM_EQUATION, "pendulum", _pendulum),
+    SceneInfo("torricelli", "k", (0.0095, 0.0128, 0.0162), "m^0.5/s",
+              "a draining tank, a floating ball marking the level", 5.0,
+              ("h0",), "h' = -k*sqrt(h)", "torricelli", _torricelli),
+    SceneInfo("sliding_block", "alpha", (20.0, 25.0, 30.0), "deg",
+              "a block sliding down a ramp inclined at alpha (mu = 0.21)", None,
+              ("mu", "t0"), "x'' = g*(sin(alpha) - mu*cos(alpha))", "sliding_block", _sliding_block),
+    SceneInfo("led", "gamma", (2.3, 0.92, 0.46), "1/s",
+              "an LED whose brightness decays as exp(-gamma t)", 3.0,
+              ("I0",), "I' = -gamma*(I - c)", "led_decay", _led),
+    SceneInfo("free_fall", "r0", (0.0335, 0.06, 0.10), "m",
+              "a ball of radius r0 falling away from a camera looking down", None,
+              ("h0", "floor"), "d'' = g", "free_fall_scale", _free_fall),
+)}
 
 
 def apparent_radius(v: SynthVideo) -> np.ndarray:
