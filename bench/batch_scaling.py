@@ -10,7 +10,6 @@ folder (pool start-up included). Prints a table and writes bench/out/batch_scali
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import sys
@@ -19,6 +18,7 @@ import time
 from pathlib import Path
 
 from fitode.batch import available_cpus, format_aggregate, run_batch
+from fitode.jsonio import write_json
 from fitode.synth import render_equation, write_video
 
 EQ = "z'' + g1*z' + g0*z = 0"
@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     record = {"bench": "batch_scaling", "videos": args.videos, "restarts": args.restarts, "max_steps": args.steps,
               "cpus": available_cpus(), "python": platform.python_version(), "machine": platform.machine(),
               "load_avg_1min": os.getloadavg()[0], "results": results}
-    (out / "batch_scaling.json").write_text(json.dumps(record, indent=1))
+    write_json(record, out / "batch_scaling.json")
     print(f"wrote {out / 'batch_scaling.json'}")
     return 0
 

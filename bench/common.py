@@ -1,5 +1,6 @@
 """What the benchmarks share: where they write, the machine they ran on, a process pool of
-single-threaded workers, a per-step recorder, plain-text tables and small statistics.
+single-threaded workers (fitode.batch.pool's, as `fitode batch` uses), a per-step recorder,
+plain-text tables and small statistics.
 
 Every benchmark module (bench/<name>.py) exposes `add_arguments(parser)` and `run(args) -> int`,
 so `fitode bench NAME` (fitode/cmd_bench.py) and `python bench/<name>.py` parse the same flags;
@@ -11,19 +12,21 @@ import argparse
 import datetime as _dt
 import json
 import math
-import multiprocessing as mp
 import os
 import platform
 import resource
 import subprocess
 import sys
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
+
+from fitode.batch.pool import WorkerPool
+from fitode.jsonio import write_json
 
 BENCH_DIR = Path(__file__).resolve().parent
 DEFAULT_OUT = BENCH_DIR / "out"
@@ -54,6 +57,17 @@ def script_main(module_doc: str | None, add_arguments: Callable, run: Callable, 
     except FitodeError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+
+
+def pick(text: str, known: Sequence[str], flag: str) -> list[str]:
+    """The names in a comma-separated option (--scenes a,b), each one of `known`, at least one."""
+    from fitode.errors import FitodeError
+
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in known]
+    if unknown or not names:
+        raise FitodeError(f"{flag}: unknown {', '.join(unknown) or '(none given)'}; choose from {', '.join(known)}")
+    return names
 
 
 def check_positive(value: int | None, flag: str) -> None:
@@ -104,24 +118,20 @@ def write_record(record: Mapping[str, Any], out: str | Path, name: str) -> Path:
     """Write <out>/<name>.json (NaN and inf as null: JSON has neither)."""
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{name}.json"
-    path.write_text(json.dumps(finite_json(record), indent=1))
-    return path
+    return write_json(record, folder / f"{name}.json")
 
 
-def finite_json(obj: Any) -> Any:
-    if isinstance(obj, (float, np.floating)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, np.ndarray):
-        return finite_json(obj.tolist())
-    if isinstance(obj, dict):
-        return {str(k): finite_json(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [finite_json(v) for v in obj]
-    return obj
+def read_record(path: str | Path) -> dict[str, Any]:
+    """A record that write_record wrote, for --report: the tables again without running anything."""
+    from fitode.errors import FitodeError
+
+    path = Path(path)
+    if not path.is_file():
+        raise FitodeError(f"--report {path}: no such file")
+    try:
+        return json.loads(path.read_text())
+    except ValueError as exc:
+        raise FitodeError(f"--report {path}: not a benchmark record ({exc})") from None
 
 
 def peak_rss_mb() -> float:
@@ -139,14 +149,6 @@ def current_rss_mb() -> float:
 
 
 # ----------------------------------------------------------------------------- pool
-def single_thread() -> None:
-    """Worker start-up: one torch (and OpenCV) thread, so workers do not fight over the cores."""
-    os.environ.setdefault("MPLBACKEND", "Agg")
-    from fitode.batch.job import single_thread as _one
-
-    _one()
-
-
 def run_pool(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int,
              on_done: Callable[[int, Any], None] | None = None) -> list[Any]:
     """fn(task) for every task, in `workers` single-threaded processes (inline when workers == 1).
@@ -157,62 +159,35 @@ def run_pool(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int,
     """
     results: list[Any] = [None] * len(tasks)
     if workers <= 1 or len(tasks) <= 1:
-        single_thread()
+        from fitode.batch.job import single_thread
+
+        os.environ.setdefault("MPLBACKEND", "Agg")
+        single_thread()  # inline, so that the timings match a one-threaded worker's
         for i, task in enumerate(tasks):
             results[i] = fn(task)
             if on_done is not None:
                 on_done(i, results[i])
         return results
-    ctx = _context()
-    pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=ctx, initializer=single_thread)
-    try:
+    with WorkerPool(min(workers, len(tasks))) as pool:
         futures = {pool.submit(fn, task): i for i, task in enumerate(tasks)}
-        pending = set(futures)
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in done:
-                i = futures[fut]
-                results[i] = fut.result()
-                if on_done is not None:
-                    on_done(i, results[i])
-    except BaseException:
-        for proc in list((getattr(pool, "_processes", None) or {}).values()):
-            try:
-                proc.terminate()
-            except Exception:  # noqa: BLE001 - already gone
-                pass
-        raise
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        for fut in as_completed(futures):
+            i = futures[fut]
+            results[i] = fut.result()
+            if on_done is not None:
+                on_done(i, results[i])
     return results
-
-
-def _context():
-    """forkserver (else spawn): a forked copy of a parent whose torch already started threads can
-    deadlock. The forkserver imports torch and fitode once (fitode.batch.warm, which starts no
-    threads), so each worker starts in milliseconds instead of re-importing them."""
-    if "forkserver" in mp.get_all_start_methods():
-        ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["fitode.batch.warm"])
-        return ctx
-    return mp.get_context("spawn")
 
 
 def run_isolated(fn: Callable[[Any], Any], task: Any, threads: int = 1) -> Any:
     """fn(task) in a fresh process with `threads` torch threads: its peak memory is its own."""
-    ctx = _context()
-    with ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=set_threads, initargs=(threads,)) as pool:
+    with WorkerPool(1, initargs=(threads,)) as pool:
         return pool.submit(fn, task).result()
 
 
-def set_threads(n: int) -> None:
-    os.environ.setdefault("MPLBACKEND", "Agg")
-    if n <= 1:
-        single_thread()
-        return
-    import torch
-
-    torch.set_num_threads(int(n))
+def ran_on(record: Mapping[str, Any]) -> str:
+    """The end of a report's last line: the machine and how long the whole benchmark took."""
+    m = record["machine"]
+    return f"{m['cpus']} CPUs (load {m['load_avg'][0]}): {record['wall_s']:.0f} s wall"
 
 
 def progress(line: str) -> None:

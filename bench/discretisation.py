@@ -22,7 +22,6 @@ Tables 1 and 2 are both in float64 on exact (noise-free) trajectories:
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from pathlib import Path
@@ -33,6 +32,7 @@ from scipy.integrate import solve_ivp
 
 from fitode.codegen import PhysicsBlock, simulate
 from fitode.eqparse import ParamSpec, parse
+from fitode.jsonio import write_json
 
 OMEGA, ZETA = 2.0, 0.04
 G0, G1 = OMEGA ** 2 + ZETA ** 2, 2 * ZETA
@@ -224,7 +224,7 @@ def main() -> None:
 
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"accuracy": acc, "bias": bias, "noise": noisy, "speed": speed, "g0_true": G0, "g1_true": G1}, indent=2))
+    write_json({"accuracy": acc, "bias": bias, "noise": noisy, "speed": speed, "g0_true": G0, "g1_true": G1}, out, indent=2)
     print(f"\nwrote {out}")
 
 

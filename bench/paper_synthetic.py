@@ -242,7 +242,8 @@ def summarise_all(runs: list[dict[str, Any]], datasets: list[str]) -> list[dict[
 
 
 def print_report(record: dict[str, Any]) -> None:
-    cfg, summaries, runs = record["settings"], record["summaries"], record["runs"]
+    cfg, runs = record["settings"], record["runs"]
+    summaries = summarise_all(runs, cfg["datasets"])  # from the runs: --report applies today's summary to an old record
     print(summary_table(summaries))
     print()
     for line in target_lines(summaries):
@@ -252,8 +253,7 @@ def print_report(record: dict[str, Any]) -> None:
     print()
     steps = cfg["max_steps"] or record["train_config_defaults"]["max_steps"]
     print(f"{len(runs)} fits, {cfg['n_frames']} frames of {cfg['size']}x{cfg['size']} at dt {cfg['dt']}, "
-          f"max_steps {steps} (ablation {cfg['ablation_steps']}), {cfg['workers']} worker(s), "
-          f"{record['machine']['cpus']} CPUs (load {record['machine']['load_avg'][0]}): {record['wall_s']:.0f} s wall")
+          f"max_steps {steps} (ablation {cfg['ablation_steps']}), {cfg['workers']} worker(s), {bc.ran_on(record)}")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -261,19 +261,10 @@ def run(args: argparse.Namespace) -> int:
     from fitode.train.trainer import TrainConfig
 
     if args.report:
-        import json
-        path = Path(args.report)
-        if not path.is_file():
-            raise FitodeError(f"--report {path}: no such file")
-        record = json.loads(path.read_text())
-        record["summaries"] = summarise_all(record["runs"], record["settings"]["datasets"])
-        print_report(record)
+        print_report(bc.read_record(args.report))
         return 0
     cfg = settings(args)
-    datasets = [d.strip() for d in args.datasets.split(",") if d.strip()]
-    unknown = [d for d in datasets if d not in DATASETS]
-    if unknown or not datasets:
-        raise FitodeError(f"--datasets: unknown {', '.join(unknown) or '(none given)'}; choose from {', '.join(DATASETS)}")
+    datasets = bc.pick(args.datasets, list(DATASETS), "--datasets")
     for key in ("inits", "n_frames", "size", "max_steps", "ablation_steps"):
         bc.check_positive(cfg[key], f"--{key.replace('_', '-')}")
     bc.check_positive(args.workers, "--workers")

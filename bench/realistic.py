@@ -233,33 +233,22 @@ def table(rows: list[dict[str, Any]]) -> str:
 
 
 def print_report(record: dict[str, Any]) -> None:
-    print(table(record["rows"]))
+    print(table(aggregate(record["videos"])))  # from the videos: --report applies today's table to an old record
     failed = [v for v in record["videos"] if v.get("status") != "complete"]
     for v in failed:
         print(f"  {v['scene']} {v['setting']:g} seed {v['seed']}: {v.get('status')}: {v.get('error')}")
     s = record["settings"]
     print(f"\n{len(record['videos'])} videos ({s['videos']} per setting), TrainConfig defaults but the options "
-          f"column, {s['workers']} worker(s), {record['machine']['cpus']} CPUs "
-          f"(load {record['machine']['load_avg'][0]}): {record['wall_s']:.0f} s wall")
+          f"column, {s['workers']} worker(s), {bc.ran_on(record)}")
 
 
 def run(args: argparse.Namespace) -> int:
-    from fitode.errors import FitodeError
     from fitode.synth import SCENES
 
     if args.report:
-        import json
-        path = Path(args.report)
-        if not path.is_file():
-            raise FitodeError(f"--report {path}: no such file")
-        record = json.loads(path.read_text())
-        record["rows"] = aggregate(record["videos"])
-        print_report(record)
+        print_report(bc.read_record(args.report))
         return 0
-    scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
-    unknown = [s for s in scenes if s not in SPEC]
-    if unknown or not scenes:
-        raise FitodeError(f"--scenes: unknown {', '.join(unknown) or '(none given)'}; choose from {', '.join(SPEC)}")
+    scenes = bc.pick(args.scenes, list(SPEC), "--scenes")
     videos = args.videos if args.videos is not None else (1 if args.quick else 5)
     for value, flag in ((videos, "--videos"), (args.workers, "--workers"), (args.max_steps, "--max-steps"),
                         (args.restarts, "--restarts")):

@@ -7,7 +7,6 @@ Prints wall time per setting and the speed-up; writes bench/out/restarts.json.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import time
 from pathlib import Path
@@ -16,6 +15,7 @@ import torch
 
 import fitode
 from fitode import synth
+from fitode.jsonio import write_json
 
 
 def main() -> None:
@@ -41,7 +41,7 @@ def main() -> None:
         print(f"{r['setting']:<28}{r['wall_s']:>9.1f}{base / r['wall_s']:>10.2f}{r['g0']:>9.4f}{r['g1']:>9.4f}")
     out = Path(__file__).resolve().parent / "out"
     out.mkdir(exist_ok=True)
-    (out / "restarts.json").write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1))
+    write_json({"args": vars(args), "rows": rows}, out / "restarts.json")
 
 
 if __name__ == "__main__":

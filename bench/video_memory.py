@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fitode.jsonio import write_json
+
 HERE = Path(__file__).resolve().parent
 
 CHILD = r"""
@@ -133,13 +135,13 @@ def main() -> None:
     print(f"\nauto stride: {auto['reason']}")
 
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({
+    write_json({
         "video": {"path": str(args.video), "frames": n, "fps": args.fps, "size": [1080, 1920],
                   "codec": "mp4v", "file_mb": size_mb, "generate_s": gen_s,
                   "full_resolution_gib": full_gb},
         "machine": {"python": platform.python_version(), "cpus": os.cpu_count(),
                     "load_average": os.getloadavg()},
-        "rows": rows}, indent=2))
+        "rows": rows}, args.out, indent=2)
     print(f"wrote {args.out}")
     if not (args.keep or reuse):
         args.video.unlink()

@@ -28,6 +28,8 @@ from dataclasses import asdict, is_dataclass
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
+from fitode.jsonio import to_jsonable, write_json  # noqa: F401 - write_json: callers use rep.write_json
+
 SPREAD_WARN = 0.05  # restarts "disagree" when their standard deviation exceeds 5% of |value|
 
 
@@ -260,8 +262,8 @@ def complete_report(report: dict[str, Any], result, analysis, calibration, t0: f
         "train_frames": int(result.train_frames),
         "states": list(result.states),
         "units": "physical" if calibration is not None else "latent",
-        "latent": _finite(latent),
-        "rollout": _finite(rollout),
+        "latent": to_jsonable(latent),
+        "rollout": to_jsonable(rollout),
     }
     report["calibration"] = calibration.to_dict() if calibration is not None else None
     report["warnings"] = warnings + report.get("warnings", [])
@@ -284,27 +286,6 @@ def partial_report(report: dict[str, Any], rows: list[dict[str, Any]], status: s
                        "steps": r.get("steps", 0), "status": r.get("status")} for r in rows]
     report["parameters"] = {}
     report["warnings"] = report.get("warnings", []) + [f"run {status}: {why}; no estimates were made"]
-
-
-def write_json(obj: Any, path: Path) -> Path:
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(_finite(obj), indent=1, allow_nan=False))
-    tmp.replace(path)  # a Ctrl-C mid-write never leaves half a result.json
-    return path
-
-
-def _finite(obj: Any) -> Any:
-    """JSON has no NaN or infinity: write them as null. numpy arrays become lists."""
-    if hasattr(obj, "tolist") and not isinstance(obj, (str, bytes)):
-        obj = obj.tolist()
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {str(k): _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    return obj
 
 
 # ----------------------------------------------------------------------------- after training

@@ -11,13 +11,12 @@ marked failed with the exit status. A fresh pool takes the rest.
 """
 from __future__ import annotations
 
-import multiprocessing as mp
 import os
 import signal
 import socket
 from collections import deque
 from contextlib import contextmanager, nullcontext
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, wait
 from concurrent.futures.process import BrokenProcessPool
 from multiprocessing.connection import wait as wait_ready
 from typing import Callable, Protocol, Sequence
@@ -25,10 +24,7 @@ from typing import Callable, Protocol, Sequence
 from fitode.errors import FitodeError
 
 from .job import JobOutcome, Task, execute_job, one_line, single_thread
-
-# fitode.batch.warm imports the heavy modules inside try blocks: a module that fails to import
-# must not take the forkserver (and so every job) down.
-PRELOAD = ("fitode.batch.warm",)
+from .pool import WorkerPool, init_worker, worker_context
 
 OnStart = Callable[[Task], None]
 OnDone = Callable[[Task, JobOutcome], None]
@@ -48,12 +44,6 @@ def available_cpus() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not Linux
         return max(1, os.cpu_count() or 1)
-
-
-def _init_worker() -> None:
-    # Ctrl-C belongs to the driver, which stops the workers itself and keeps the summary consistent.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    single_thread()
 
 
 def _died(task: Task, exitcode: int | None) -> JobOutcome:
@@ -77,15 +67,8 @@ class LocalExecutor:
         if workers is not None and workers < 1:
             raise FitodeError(f"--workers must be at least 1, got {workers}")
         self.workers = workers or available_cpus()
-        # Never fork the driver: a forked torch (its thread pools, its allocator) is not safe to use.
-        # The forkserver is a clean process that imports the heavy libraries once (importing starts
-        # no threads) and forks each worker from there, so a worker starts in milliseconds instead
-        # of re-importing torch for seconds, which matters when a pool is rebuilt after a death.
-        methods = mp.get_all_start_methods()
-        self.start_method = start_method or ("forkserver" if "forkserver" in methods else "spawn")
-        self.context = mp.get_context(self.start_method)
-        if self.start_method == "forkserver":
-            self.context.set_forkserver_preload(list(PRELOAD))
+        self.context = worker_context(start_method)
+        self.start_method = self.context.get_start_method()
 
     def describe(self) -> str:
         return f"{self.workers} local worker{'s' if self.workers != 1 else ''}"
@@ -100,11 +83,10 @@ class LocalExecutor:
     def _pool_pass(self, queue: deque[Task], on_start: OnStart, on_done: OnDone) -> list[Task]:
         """Run tasks from the queue until it is empty or the pool breaks; returns the broken pool's suspects."""
         size = min(self.workers, len(queue))
-        pool = ProcessPoolExecutor(max_workers=size, mp_context=self.context, initializer=_init_worker)
         inflight: dict = {}
         suspects: list[Task] = []
         broken = False
-        try:
+        with WorkerPool(size, self.context) as pool:  # an exception (Ctrl-C) stops the workers at once
             while (queue and not broken) or inflight:
                 while queue and len(inflight) < size and not broken:
                     task = queue.popleft()
@@ -131,12 +113,7 @@ class LocalExecutor:
                         outcome = JobOutcome(name=task.job.name, status="failed",
                                              error=one_line(f"could not run the job: {type(exc).__name__}: {exc}"))
                     on_done(task, outcome)
-            return suspects
-        except BaseException:
-            _terminate(pool)
-            raise
-        finally:
-            pool.shutdown(wait=True, cancel_futures=True)
+        return suspects
 
     def _isolated(self, tasks: list[Task], on_start: OnStart, on_done: OnDone) -> None:
         """Each task alone in its own process, up to `workers` at once, so a death names its job."""
@@ -179,20 +156,10 @@ class LocalExecutor:
 
 
 def _isolated_main(conn, task: Task) -> None:
-    _init_worker()
+    init_worker()
     outcome = execute_job(task)
     conn.send(outcome)
     conn.close()
-
-
-def _terminate(pool: ProcessPoolExecutor) -> None:
-    """Stop the workers now (Ctrl-C): concurrent.futures would let the running jobs finish first."""
-    procs = getattr(pool, "_processes", None) or {}
-    for proc in list(procs.values()):
-        try:
-            proc.terminate()
-        except Exception:
-            pass
 
 
 class RayExecutor:

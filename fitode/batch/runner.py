@@ -11,17 +11,18 @@ from __future__ import annotations
 import json
 import os
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from fitode.errors import FitodeError
+from fitode.jsonio import write_json
 
 from .executors import Executor, make_executor
 from .job import DEFAULT_RUNNER, JobOutcome, Task, check_report, report_details, report_parameters
 from .manifest import Job, Manifest, load_manifest
-from .summary import SummaryRow, aggregate, atomic_write_text, counts, write_summary
+from .summary import SummaryRow, aggregate, counts, write_summary
 
 MARKER = "batch.json"
 LOCK = ".lock"
@@ -182,7 +183,7 @@ def _claim(out_dir: Path, man: Manifest, dry_run: bool):
             info["created"] = json.loads(marker.read_text()).get("created", info["created"])
         except (OSError, ValueError):
             pass
-    atomic_write_text(marker, json.dumps(info, indent=1))
+    write_json(info, marker)
     return lock
 
 
@@ -254,7 +255,7 @@ def _write_job_file(folder: Path, job: Job, outcome: JobOutcome) -> None:
         state["traceback"] = outcome.traceback
     from fitode import __version__
     state["fitode"] = __version__
-    atomic_write_text(folder / JOB_FILE, json.dumps(state, indent=1, default=str))
+    write_json(state, folder / JOB_FILE, default=str)  # default: a settings value JSON has no type for
 
 
 def _read_json(path: Path) -> Any:

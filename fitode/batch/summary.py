@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
-import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
+
+from fitode.jsonio import write_json, write_text
 
 STATUSES = ("complete", "incomplete", "failed", "pending")
 
@@ -130,12 +130,12 @@ def write_summary(out: Path, rows: list[SummaryRow], meta: dict[str, Any]) -> No
     """summary.csv, summary.json, aggregate.csv and aggregate.json, each replaced atomically."""
     agg = aggregate(rows)
     header, table = summary_table(rows)
-    _atomic(out / "summary.csv", _csv(header, table))
+    write_text(_csv(header, table), out / "summary.csv")
     payload = {**meta, "counts": counts(rows), "jobs": [_row_json(r) for r in rows], "aggregate": agg}
-    _atomic(out / "summary.json", json.dumps(_finite(payload), indent=1))
+    write_json(payload, out / "summary.json")
     header, table = aggregate_table(agg)
-    _atomic(out / "aggregate.csv", _csv(header, table))
-    _atomic(out / "aggregate.json", json.dumps(_finite({"manifest": meta.get("manifest"), "settings": agg}), indent=1))
+    write_text(_csv(header, table), out / "aggregate.csv")
+    write_json({"manifest": meta.get("manifest"), "settings": agg}, out / "aggregate.json")
 
 
 def format_aggregate(agg: list[dict[str, Any]]) -> str:
@@ -162,10 +162,6 @@ def format_aggregate(agg: list[dict[str, Any]]) -> str:
     return "\n".join([fmt(header)] + [fmt(c) for c in lines])
 
 
-def atomic_write_text(path: Path, text: str) -> None:
-    _atomic(path, text)
-
-
 def _row_json(r: SummaryRow) -> dict[str, Any]:
     d = asdict(r)
     d["rel_error"] = {n: r.rel_error(n) for n in r.truth}
@@ -181,24 +177,5 @@ def _csv(header: list[str], table: list[list[Any]]) -> str:
     return buf.getvalue()
 
 
-def _atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-
-
 def _round(v: float | None, digits: int) -> float | None:
     return None if v is None else round(v, digits)
-
-
-def _finite(obj: Any) -> Any:
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    return obj

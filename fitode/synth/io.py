@@ -13,12 +13,12 @@ mp4 is lossy (and 8-bit): use npy for the exact frames.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
 
 from fitode.errors import FitodeError
+from fitode.jsonio import to_jsonable
 from fitode.synth.video import SynthVideo
 
 FORMATS = {".mp4": "mp4", ".npy": "npy"}
@@ -61,7 +61,7 @@ def truth_record(v: SynthVideo, video_name: str | None = None, file_format: str 
         "latent": np.asarray(v.latent, np.float64).tolist(),
         "settings": v.meta,
     }
-    return _jsonable(rec)
+    return to_jsonable(rec)
 
 
 def write_video(v: SynthVideo, path: str | Path) -> Path:
@@ -117,22 +117,3 @@ def _write_mp4(v: SynthVideo, path: Path) -> None:
         writer.release()
     if not path.exists() or path.stat().st_size == 0:
         raise FitodeError(f"OpenCV wrote nothing to {path}; use .npy")
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        f = float(x)
-        return f if math.isfinite(f) else None
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (np.bool_,)):
-        return bool(x)
-    if isinstance(x, Path):
-        return str(x)
-    return x
