@@ -383,6 +383,7 @@ def test_cli_dry_run_lists_jobs_and_writes_nothing(tmp_path, capsys):
     assert not (tmp_path / "videos-results").exists()
 
 
+@pytest.mark.slow  # a real Ctrl-C to a driver process, and jobs that must be running when it comes
 def test_sigint_stops_workers_and_leaves_the_summary_consistent(tmp_path):
     """A real Ctrl-C (SIGINT to the driver) while jobs run: the driver exits promptly, its workers are
     gone, summary.json parses and marks the unfinished jobs pending; the next run finishes them."""

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 cv2 = pytest.importorskip("cv2")
+pytestmark = pytest.mark.slow  # every test fits real videos, and one starts a Ray cluster
 
 from fitode.cli import main  # noqa: E402
 
