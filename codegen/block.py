@@ -33,21 +33,27 @@ class PhysicsBlock(nn.Module):
         value inside their bounds. Bounds are kept by reparametrisation (fitode.codegen.constants).
     integrator: "rk4" (default), "symplectic" (the paper's scheme; alias "paper") or "euler".
     substeps: integrator steps per frame interval (h = dt / substeps).
-    init: "difference" (centred finite differences), "backward" (the paper's one-sided ones) or
-        "learnable" (per-window initial derivatives, initialised by the centred differences the
-        first time a window is seen; needs n_windows, and window_index in forward: without it
-        the block falls back to the differences).
+    initial_state: "difference" (centred finite differences), "backward" (the paper's one-sided
+        ones) or "learnable" (per-window initial derivatives, initialised by the centred
+        differences the first time a window is seen; needs n_windows, and window_index in
+        forward: without it the block falls back to the differences).
     context: number of leading frames used for the initial state (default by init; see
         fitode.codegen.differences).
     dtype: dtype of the constants' parameters and of the fixed constants.
     check_finite: raise NonFiniteError instead of returning NaN/inf (one isfinite().all() per
-        forward).
+        forward, a host synchronisation).
+    restarts: None for one set of constants (0-d parameters), or R for R restarts trained as one
+        batched model: every constant is then an (R,) parameter, z_head is (R, B, n_context, dim)
+        and the output (R, B, n_frames, dim). Each restart's paper lr scale (10**floor(log10|v|)
+        of its own start) is folded into its parametrisation (value = raw * scale), because one
+        Adam learning rate per tensor cannot differ between restarts; Adam is invariant to that
+        rescaling, so each restart moves exactly as it would alone with lr * scale.
     """
 
     def __init__(self, system: OdeSystem, params: Mapping[str, ParamSpec] | None = None, *,
-                 integrator: str = "rk4", substeps: int = 1, init: str = "difference",
+                 integrator: str = "rk4", substeps: int = 1, initial_state: str = "difference",
                  n_windows: int | None = None, dtype: torch.dtype = torch.float32,
-                 context: int | None = None, check_finite: bool = True):
+                 context: int | None = None, check_finite: bool = True, restarts: int | None = None):
         super().__init__()
         if int(substeps) < 1:
             raise ParameterError(f"substeps must be at least 1, not {substeps}")
@@ -57,9 +63,13 @@ class PhysicsBlock(nn.Module):
         self.integrator_name = get_integrator(integrator).name
         self.integrator = get_integrator(integrator)(self.layout)
         self.substeps = int(substeps)
-        self.init = init
-        self.scheme: InitScheme = init_scheme(self.layout.max_order, init, context)
+        self.initial_state_mode = initial_state
+        self.scheme: InitScheme = init_scheme(self.layout.max_order, initial_state, context)
         self.check_finite = check_finite
+        if restarts is not None and int(restarts) < 1:
+            raise ParameterError(f"restarts must be at least 1, not {restarts}")
+        self.restarts = None if restarts is None else int(restarts)
+        shape = () if self.restarts is None else (self.restarts,)
 
         params = dict(params or {})
         self._reparams: dict[str, Reparam] = {}
@@ -71,7 +81,9 @@ class PhysicsBlock(nn.Module):
             self._reparams[name] = rep
             self._scale_values[name] = v0
             self._param_attr[name] = "const_" + ident
-            self.register_parameter("const_" + ident, nn.Parameter(torch.tensor(rep.raw(v0), dtype=dtype)))
+            self.register_parameter("const_" + ident, nn.Parameter(torch.full(shape, rep.raw(v0), dtype=dtype)))
+            if self.restarts is not None:
+                self.register_buffer("scale_" + ident, torch.ones(shape, dtype=dtype))
         fixed = [float(system.fixed[n]) for n in lay.constants[lay.n_learnable:]]
         self.register_buffer("fixed_values", torch.tensor(fixed, dtype=dtype))
 
@@ -81,10 +93,11 @@ class PhysicsBlock(nn.Module):
         self._deriv_slots = list(lay.derivative_slots)
         self._weights_cache: dict = {}
         self.n_windows = n_windows
-        if init == "learnable":
+        if initial_state == "learnable":
             if not n_windows or n_windows < 1:
-                raise ParameterError("init='learnable' needs n_windows (the number of distinct windows)")
-            self.initial_derivatives = nn.Parameter(torch.zeros(n_windows, len(self._deriv_slots), dtype=dtype))
+                raise ParameterError("initial_state='learnable' needs n_windows (the number of distinct windows)")
+            self.initial_derivatives = nn.Parameter(torch.zeros(*shape, n_windows, len(self._deriv_slots),
+                                                                dtype=dtype))
             self.register_buffer("initialised", torch.zeros(n_windows, dtype=torch.bool))
             # Learnable slots come after the encoder's values in one concatenated source row.
             pos = {slot: j for j, slot in enumerate(self._value_slots)}
@@ -111,7 +124,7 @@ class PhysicsBlock(nn.Module):
     def source(self) -> str:
         """The generated source of the vector field, with comments on integrator and initial state."""
         return generate_source(self.system, integrator=self.integrator_name, substeps=self.substeps,
-                               init=self.init, context=self.scheme.context)
+                               initial_state=self.initial_state_mode, context=self.scheme.context)
 
     # ----------------------------------------------------------------- constants
     def _param(self, name: str) -> nn.Parameter:
@@ -121,25 +134,45 @@ class PhysicsBlock(nn.Module):
             raise ParameterError(f"{name} is not a learnable constant of this equation "
                                  f"(learnable: {', '.join(self._reparams) or 'none'})") from None
 
+    def _raw(self, name: str) -> torch.Tensor:
+        u = self._param(name)
+        if self.restarts is not None and self._reparams[name].kind == "identity":
+            return u * getattr(self, "scale_" + self._param_attr[name][len("const_"):])
+        return u
+
     def constants(self) -> dict[str, torch.Tensor]:
-        """Current values of the learnable constants (0-d tensors, in the autograd graph)."""
-        return {n: rep.value(self._param(n)) for n, rep in self._reparams.items()}
+        """Current values of the learnable constants (0-d tensors, or (R,) with restarts; in the
+        autograd graph)."""
+        return {n: rep.value(self._raw(n)) for n, rep in self._reparams.items()}
 
     def fixed_constants(self) -> dict[str, float]:
         lay = self.layout
         return dict(zip(lay.constants[lay.n_learnable:], self.fixed_values.tolist()))
 
-    def set_constants(self, values: Mapping[str, float], *, clip: bool = False) -> None:
+    def set_constants(self, values: Mapping[str, float | Sequence[float]], *, clip: bool = False) -> None:
         """Set learnable constants (e.g. for a restart). Values must lie strictly inside the
-        bounds, or are moved just inside them with clip=True. lr_scale follows the new value."""
+        bounds, or are moved just inside them with clip=True. lr_scale follows the new value.
+        With restarts, a value is one number for every restart or a sequence of R numbers."""
         for name, v in values.items():
             rep = self._reparams.get(name)
             if rep is None:
                 self._param(name)  # raises the ParameterError
-            v = rep.clip(float(v)) if clip else float(v)
+            if self.restarts is None:
+                v = rep.clip(float(v)) if clip else float(v)
+                with torch.no_grad():
+                    self._param(name).fill_(rep.raw(v))
+                self._scale_values[name] = v
+                continue
+            vs = [float(v)] * self.restarts if isinstance(v, (int, float)) else [float(x) for x in v]
+            if len(vs) != self.restarts:
+                raise ParameterError(f"{name}: {len(vs)} values for {self.restarts} restarts")
+            vs = [rep.clip(x) if clip else x for x in vs]
+            scales = [rep.lr_scale(x) for x in vs]
             with torch.no_grad():
-                self._param(name).fill_(rep.raw(v))
-            self._scale_values[name] = v
+                self._param(name).copy_(torch.tensor([rep.raw(x) / sc for x, sc in zip(vs, scales)]))
+                if rep.kind == "identity":
+                    getattr(self, "scale_" + self._param_attr[name][len("const_"):]).copy_(torch.tensor(scales))
+            self._scale_values[name] = vs[0]
 
     def bounds(self, name: str) -> tuple[float | None, float | None]:
         self._param(name)
@@ -152,10 +185,12 @@ class PhysicsBlock(nn.Module):
 
     def lr_scale(self, name: str) -> float:
         """Multiplier of the base lr for constant `name` (fitode.codegen.constants has the table);
-        "initial_derivatives" -> 1."""
-        if name == "initial_derivatives" and self.init == "learnable":
+        "initial_derivatives" -> 1, and 1 for every constant with restarts (folded in, see above)."""
+        if name == "initial_derivatives" and self.initial_state_mode == "learnable":
             return 1.0
         self._param(name)
+        if self.restarts is not None:
+            return 1.0
         return self._reparams[name].lr_scale(self._scale_values[name])
 
     def param_groups(self, lr: float = 1.0) -> list[dict]:
@@ -164,13 +199,15 @@ class PhysicsBlock(nn.Module):
         "initial_state"} group holding the per-window derivatives."""
         groups = [{"params": [self._param(n)], "lr": lr * self.lr_scale(n), "name": n, "kind": "constant"}
                   for n in self._reparams]
-        if self.init == "learnable":
+        if self.initial_state_mode == "learnable":
             groups.append({"params": [self.initial_derivatives], "lr": lr, "name": "initial_derivatives",
                            "kind": "initial_state"})
         return groups
 
     def _const_args(self) -> tuple[torch.Tensor, ...]:
-        learn = tuple(rep.value(self._param(n)) for n, rep in self._reparams.items())
+        learn = tuple(self.constants().values())
+        if self.restarts is not None:  # (R,) -> (R, 1): broadcast over each restart's windows
+            learn = tuple(c[:, None] for c in learn)
         return learn + tuple(self.fixed_values.unbind(0))
 
     # ----------------------------------------------------------------- initial state
@@ -186,50 +223,55 @@ class PhysicsBlock(nn.Module):
         return w
 
     def difference_state(self, z_head: torch.Tensor, dt: float) -> torch.Tensor:
-        """The finite-difference state at the anchor, (B, n_slots), from z_head (B, n_context, dim)."""
-        d = torch.einsum("kc,bcd->bkd", self._weights(z_head, dt), z_head)
-        return d.reshape(d.shape[0], -1)[:, self._slot_src]
+        """The finite-difference state at the anchor, (..., n_slots), from z_head (..., n_context, dim)."""
+        d = torch.einsum("kc,...cd->...kd", self._weights(z_head, dt), z_head)
+        return d.reshape(*d.shape[:-2], -1)[..., self._slot_src]
 
     @torch.no_grad()
     def init_from(self, z_head: torch.Tensor, window_index: torch.Tensor, dt: float) -> None:
         """Set the learnable initial derivatives of these windows from finite differences."""
-        if self.init != "learnable":
-            raise ParameterError("init_from needs init='learnable'")
-        zh = self._flat_head(z_head)
+        if self.initial_state_mode != "learnable":
+            raise ParameterError("init_from needs initial_state='learnable'")
         idx = window_index.reshape(-1).to(self.initial_derivatives.device)
-        y0 = self.difference_state(zh, dt)
-        self.initial_derivatives[idx] = y0[:, self._deriv_slots].to(self.initial_derivatives)
+        y0 = self.difference_state(self._head(z_head), dt)
+        self.initial_derivatives[..., idx, :] = y0[..., self._deriv_slots].to(self.initial_derivatives)
         self.initialised[idx] = True
 
     def initial_state(self, z_head: torch.Tensor, dt: float,
                       window_index: torch.Tensor | None = None) -> torch.Tensor:
-        """The state at the anchor frame for each window, (B, n_slots); z_head is (B, n_context, dim)."""
+        """The state at the anchor frame for each window, (..., B, n_slots), from z_head
+        (..., B, n_context, dim)."""
         y0 = self.difference_state(z_head, dt)
-        if self.init != "learnable":
-            return y0
-        if window_index is None:  # e.g. a rollout of the whole video: no per-window values apply
-            return y0
+        if self.initial_state_mode != "learnable" or window_index is None:
+            return y0  # without window_index (a rollout of the whole video) no per-window values apply
         idx = window_index.reshape(-1).to(self.initial_derivatives.device)
-        if idx.numel() != z_head.shape[0]:
-            raise ValueError(f"window_index has {idx.numel()} entries for {z_head.shape[0]} windows")
+        if idx.numel() != z_head.shape[-3]:
+            raise ValueError(f"window_index has {idx.numel()} entries for {z_head.shape[-3]} windows")
         new = ~self.initialised[idx]
         if new.any():
-            self.init_from(z_head[new.to(z_head.device)], idx[new], dt)
-        learned = self.initial_derivatives[idx].to(device=z_head.device, dtype=z_head.dtype)
-        return torch.cat([y0[:, self._value_slots], learned], dim=-1)[:, self._learnable_perm]
+            self.init_from(z_head[..., new.to(z_head.device), :, :], idx[new], dt)
+        learned = self.initial_derivatives[..., idx, :].to(device=z_head.device, dtype=z_head.dtype)
+        return torch.cat([y0[..., self._value_slots], learned], dim=-1)[..., self._learnable_perm]
 
-    def _flat_head(self, z_head: torch.Tensor) -> torch.Tensor:
+    def _head(self, z_head: torch.Tensor) -> torch.Tensor:
+        """z_head cut to the context frames: (B, n_context, dim), or (R, B, n_context, dim) with restarts."""
         if z_head.dim() < 2 or z_head.shape[-1] != self.dim:
             raise ValueError(f"z_head must have shape (..., n_context, {self.dim}), got {tuple(z_head.shape)}")
         if z_head.shape[-2] < self.n_context:
             raise ValueError(f"z_head has {z_head.shape[-2]} frame(s); this block needs {self.n_context}")
-        return z_head[..., :self.n_context, :].reshape(-1, self.n_context, self.dim)
+        zh = z_head[..., :self.n_context, :]
+        if self.restarts is None:
+            return zh.reshape(-1, self.n_context, self.dim)
+        if z_head.dim() != 4 or z_head.shape[0] != self.restarts:
+            raise ValueError(f"with {self.restarts} restarts z_head must be ({self.restarts}, B, n_context, "
+                             f"{self.dim}), got {tuple(z_head.shape)}")
+        return zh
 
     # ----------------------------------------------------------------- rollout
     def forward(self, z_head: torch.Tensor, n_frames: int, dt: float,
                 window_index: torch.Tensor | None = None) -> torch.Tensor:
         lead = z_head.shape[:-2]
-        zh = self._flat_head(z_head)
+        zh = self._head(z_head)
         anchor = self.scheme.anchor
         if n_frames < anchor + 1:
             raise ValueError(f"n_frames = {n_frames}: the rollout starts at frame {anchor}")
@@ -239,19 +281,29 @@ class PhysicsBlock(nn.Module):
         fn = self.field.fn
         traj = self.integrator.rollout(lambda y: fn(y, *consts), y0, n_frames - anchor, dt, self.substeps)
         pred = traj if len(self._value_slots) == traj.shape[-1] else traj[..., self._value_slots]
-        out = torch.cat([zh[:, :anchor], pred], dim=1) if anchor else pred
+        out = torch.cat([zh[..., :anchor, :], pred], dim=-2) if anchor else pred
         if self.check_finite and not bool(torch.isfinite(out).all()):
-            if not bool(torch.isfinite(zh).all()):
-                raise NonFiniteError("the encoded frames given to the physics block contain NaN or inf",
-                                     term="z_head")
-            raise explain_nonfinite(self.field, self.integrator, y0, consts, n_frames - anchor, dt,
-                                    self.substeps, frame_offset=anchor)
-        return out.reshape(*lead, n_frames, self.dim)
+            raise self.explain(zh, n_frames, dt)
+        return out if self.restarts is not None else out.reshape(*lead, n_frames, self.dim)
+
+    def explain(self, z_head: torch.Tensor, n_frames: int, dt: float, restart: int | None = None) -> NonFiniteError:
+        """What went non-finite in the rollout of these windows (of one restart, with restarts)."""
+        zh = self._head(z_head)
+        consts = self._const_args()
+        if self.restarts is not None:
+            r = 0 if restart is None else int(restart)
+            zh = zh[r]
+            consts = tuple(c[r, 0] if c.dim() == 2 else c for c in consts)
+        if not bool(torch.isfinite(zh).all()):
+            return NonFiniteError("the encoded frames given to the physics block contain NaN or inf", term="z_head")
+        y0 = self.difference_state(zh, float(dt))
+        return explain_nonfinite(self.field, self.integrator, y0, consts, n_frames - self.scheme.anchor, float(dt),
+                                 self.substeps, frame_offset=self.scheme.anchor)
 
     def extra_repr(self) -> str:
-        consts = ", ".join(f"{n}={v.item():.6g}" for n, v in self.constants().items())
+        consts = ", ".join(f"{n}={v.tolist()}" for n, v in self.constants().items())
         return (f"{'; '.join(self.system.normal_form())}, integrator={self.integrator_name}, "
-                f"substeps={self.substeps}, init={self.init}, n_context={self.n_context}, {consts}")
+                f"substeps={self.substeps}, initial_state={self.initial_state_mode}, n_context={self.n_context}, {consts}")
 
 
 def _initial_vector(layout: StateLayout, y0, dtype, device) -> torch.Tensor:

@@ -88,7 +88,7 @@ def describe_init(layout, mode: str, context: int | None = None) -> str:
     scheme = init_scheme(layout.max_order, mode, context)
     z = sympy.IndexedBase("z")
     dt = sympy.Symbol("dt")
-    lines = [f"Initial state (init={mode!r}): each latent z from {scheme.context} context frame(s) "
+    lines = [f"Initial state ({mode!r}): each latent z from {scheme.context} context frame(s) "
              f"z[0..{scheme.context - 1}]; the rollout starts at frame {scheme.anchor}:"]
     width = len("z" + "'" * (layout.max_order - 1))
     for k in range(layout.max_order):

@@ -257,10 +257,10 @@ def _compile_subterms(layout: StateLayout):
 
 
 def generate_source(system: OdeSystem, *, integrator: str | None = None, substeps: int = 1,
-                    init: str | None = None, context: int | None = None) -> str:
+                    initial_state: str | None = None, context: int | None = None) -> str:
     """The readable Python source of `system`'s vector field (what `fitode codegen` prints).
 
-    With `integrator` (and optionally `init`/`context`), comment lines describing the time step
+    With `integrator` (and optionally `initial_state`/`context`), comment lines describing the time step
     and the initial-state formula are prepended; the code itself is the compiled function.
     """
     from .differences import describe_init
@@ -273,6 +273,6 @@ def generate_source(system: OdeSystem, *, integrator: str | None = None, substep
         h = "dt" if substeps == 1 else f"dt/{substeps}"
         notes.append(f"# Integrator: {cls.name} (order {cls.order}), {substeps} sub-step(s) per frame, h = {h}:")
         notes += [f"#   {line}" for line in cls.formula.strip().splitlines()]
-    if init is not None:
-        notes += [f"# {line}" for line in describe_init(vf.layout, init, context).splitlines()]
+    if initial_state is not None:
+        notes += [f"# {line}" for line in describe_init(vf.layout, initial_state, context).splitlines()]
     return "\n".join(notes + [vf.source.rstrip("\n")]) + "\n"

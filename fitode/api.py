@@ -6,16 +6,19 @@ from typing import Iterable, Mapping
 import numpy as np
 import torch
 
-from fitode.eqparse import FitodeError, OdeSystem, ParamSpec
-from fitode.train.encoders import normalise_frames
+from fitode.eqparse import OdeSystem, ParamSpec
+from fitode.errors import ConfigError, FitodeError
+from fitode.train.config import TrainConfig
+from fitode.train.observe import ObservationModel
 from fitode.train.result import FitResult
-from fitode.train.trainer import Callback, TrainConfig, fit_frames
+from fitode.train.trainer import Callback, fit_frames
 
 
 def fit(frames, dt: float, *, eq: str | None = None, system: str | OdeSystem | None = None,
         eq_file: str | None = None, const: Mapping[str, float] | None = None, free: Iterable[str] = (),
         init: Mapping[str, float] | None = None, params: Mapping[str, ParamSpec] | None = None,
         prior: tuple[float, float] | None = None, train_fraction: float = 1.0,
+        observe: str | ObservationModel | None = None,
         callback: Callback | None = None, progress: bool = True, **options) -> FitResult:
     """Estimate the learnable constants of an equation from a frame sequence.
 
@@ -23,29 +26,44 @@ def fit(frames, dt: float, *, eq: str | None = None, system: str | OdeSystem | N
     dt: seconds between consecutive frames.
     The equation is given as text (eq), a shipped system name or an OdeSystem (system), or an
     equation file (eq_file). const fixes constants, free frees known ones, init sets starting
-    values for every restart, prior overrides the equation file's (mean, std).
+    values for every restart, prior overrides the equation file's (mean, std). observe is the
+    observation model (a name or a fitode.train.observe.ObservationModel; default "any").
     options: any TrainConfig field (restarts, max_steps, window, integrator, substeps, encoder,
-    use_kl, lr, const_lr, batch_windows, seed, device, ...).
+    use_kl, lr, const_lr, batch_windows, seed, device, threads, ...). Every bad option raises a
+    fitode.ConfigError naming it, before any work.
     """
     ode, spec_params, spec_prior = _equation(eq, system, eq_file, const, free)
     if params is not None:
         spec_params = {**spec_params, **params}
-    unknown = set(options) - set(TrainConfig.__dataclass_fields__)
-    if unknown:
-        raise FitodeError(f"unknown option(s): {', '.join(sorted(unknown))}")
-    if not ode.learnable:
-        raise FitodeError("the equation has no learnable constant to estimate")
-    if not (dt > 0 and np.isfinite(dt)):
-        raise FitodeError(f"dt must be a positive number of seconds, got {dt}")
-    config = TrainConfig(**options, prior=tuple(prior) if prior is not None else spec_prior)
-    if config.prior[1] <= 0:
-        raise FitodeError("the prior's standard deviation must be positive")
+    config = checked_config(ode, options, prior=prior, default_prior=spec_prior, init=init,
+                            train_fraction=train_fraction)
+    if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not (dt > 0 and np.isfinite(dt)):
+        raise ConfigError(f"dt must be a positive number of seconds, got {dt!r}")
     x = as_frames(frames)
-    if not 0 < train_fraction <= 1:
-        raise FitodeError("train_fraction must be in (0, 1]")
     n_train = max(int(round(train_fraction * x.shape[0])), 1)
-    return fit_frames(normalise_frames(x), float(dt), ode, spec_params, config, train_frames=n_train,
-                      init=init, callback=callback, progress=progress)
+    return fit_frames(x, float(dt), ode, spec_params, config, train_frames=n_train,
+                      init=init, callback=callback, progress=progress, observe=observe)
+
+
+def checked_config(ode: OdeSystem, options: Mapping, *, prior=None, default_prior=(0.0, 1.0),
+                   init: Mapping[str, float] | None = None, train_fraction: float = 1.0) -> TrainConfig:
+    """Every check of a fit request that needs no frames, in one place (the API, the pipeline and
+    batch all come through here): the training options, the prior, init's names, train_fraction."""
+    if "prior" in options:
+        raise ConfigError("give the prior as prior=(mean, std), not as a training option")
+    config = TrainConfig.from_options(options, prior=tuple(prior) if prior is not None else tuple(default_prior))
+    if not ode.learnable:
+        raise FitodeError("the equation has no learnable constant to estimate (every name is fixed)")
+    unknown = sorted(set(init or {}) - set(ode.learnable))
+    if unknown:
+        raise ConfigError(f"init names {', '.join(unknown)}, which is not a learnable constant "
+                          f"(learnable: {', '.join(ode.learnable)})")
+    if isinstance(train_fraction, bool) or not isinstance(train_fraction, (int, float)) or not 0 < train_fraction <= 1:
+        raise ConfigError(f"train_fraction must be in (0, 1], got {train_fraction!r}")
+    if config.device.startswith("cuda") and not torch.cuda.is_available():
+        raise ConfigError(f"device {config.device}: no CUDA device is available here (torch {torch.__version__}, "
+                          f"built {'with' if torch.version.cuda else 'without'} CUDA); use cpu")
+    return config
 
 
 def as_frames(frames) -> torch.Tensor:

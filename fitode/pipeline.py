@@ -9,7 +9,6 @@ result.json marked "incomplete" or "failed" and whatever plots its data allow.
 from __future__ import annotations
 
 import datetime as _dt
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
@@ -61,21 +60,14 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
 
     say = log if log is not None else (lambda _line: None)
     user_callback = train_options.pop("callback", None)
-    _check_train_options(train_options)
-    if not 0 < train_fraction <= 1:
-        raise FitodeError(f"--train-fraction must be in (0, 1], got {train_fraction}")
-    if prior is not None and not (len(prior) == 2 and prior[1] > 0):
-        raise FitodeError("--prior needs MEAN,STD with STD > 0")
 
-    # Cheap checks first: a typo in the equation or the calibration must not cost a video decode.
+    # Cheap checks first: a typo in an option, the equation or the calibration must not cost a video decode.
+    from fitode.api import checked_config
     ode, spec = _resolve_equation(eq, eq_file, system, const, free)
-    if not ode.learnable:
-        raise FitodeError("the equation has no learnable constant to estimate (every name is fixed)")
-    if init:
-        unknown = sorted(set(init) - set(ode.learnable))
-        if unknown:
-            raise FitodeError(f"--init names {', '.join(unknown)}, which is not a learnable constant "
-                              f"(learnable: {', '.join(ode.learnable)})")
+    spec_prior = (spec.prior_mean, spec.prior_std) if spec is not None else (0.0, 1.0)
+    config = checked_config(ode, train_options, prior=prior, default_prior=spec_prior, init=init,
+                            train_fraction=train_fraction)
+    use_prior = config.prior
     points = None
     if calibrate is not None:
         from fitode.calibrate import parse_calibration
@@ -83,25 +75,22 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
     target = _check_out_dir(out_dir)
     analysis = rep.analysis_dict(ode)
     params = dict(spec.parameters) if spec is not None else {}
-    spec_prior = (spec.prior_mean, spec.prior_std) if spec is not None else (0.0, 1.0)
-    use_prior = tuple(float(v) for v in prior) if prior is not None else tuple(float(v) for v in spec_prior)
 
     clip = _read(video, fps=fps, start=start, end=end, roi=roi, size=size, color=color, stride=stride, mask=mask,
                  progress=progress)
     n_frames = int(clip.frames.shape[0])
     n_train = max(int(round(train_fraction * n_frames)), 1)
-    window = int(train_options.get("window", _train_default("window")))
     if n_frames == 0:
         raise FitodeError(f"{video}: no frames to fit (check --start/--end)")
-    if n_train < window + 1:
-        raise FitodeError(f"{n_train} training frames are fewer than one window of {window} frames plus one; "
+    if n_train < config.window + 1:
+        raise FitodeError(f"{n_train} training frames are fewer than one window of {config.window} frames plus one; "
                           "use a longer clip, a smaller --stride or a smaller --window")
-    t0 = float(getattr(clip, "start_frame", 0)) / float(clip.fps)  # video time of frame 0: what --start skipped
+    t0 = float(clip.start_frame) / float(clip.fps)  # video time of frame 0: what --start skipped
     if points is not None:
         from fitode.calibrate import check_times
         check_times(points, t0, t0 + (n_frames - 1) * clip.dt)
 
-    settings = {**_train_defaults(), **train_options, "prior": list(use_prior), "train_fraction": train_fraction}
+    settings = {**config.as_dict(), "train_fraction": train_fraction}
     for line in rep.understanding_lines(ode, spec, analysis, clip, n_train, settings):
         say(line)
 
@@ -159,46 +148,6 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
 
 
 # ---------------------------------------------------------------------------------------------
-def _train_defaults() -> dict[str, Any]:
-    from dataclasses import asdict
-    from fitode.train.trainer import TrainConfig
-    d = asdict(TrainConfig())
-    d.pop("prior", None)
-    return d
-
-
-def _train_default(name: str) -> Any:
-    return _train_defaults()[name]
-
-
-def _check_train_options(options: Mapping[str, Any]) -> None:
-    from fitode.train.trainer import TrainConfig
-    unknown = set(options) - set(TrainConfig.__dataclass_fields__) - {"prior"}
-    if unknown:
-        raise FitodeError(f"unknown training option(s): {', '.join(sorted(unknown))}")
-    if "prior" in options:
-        raise FitodeError("give the prior as prior=(mean, std), not as a training option")
-    for key in ("restarts", "max_steps", "window", "workers"):
-        if key in options and (not isinstance(options[key], int) or options[key] < 1):
-            raise FitodeError(f"--{key.replace('_', '-')} must be a positive integer, got {options[key]!r}")
-    if options.get("window", 3) < 3:
-        raise FitodeError("--window must be at least 3 frames")
-    encoder = options.get("encoder")
-    if encoder is not None:
-        from fitode.train.encoders import ENCODERS
-        if encoder not in ENCODERS:
-            raise FitodeError(f"unknown encoder {encoder!r}; choose one of {', '.join(ENCODERS)}")
-    device = str(options.get("device", "cpu"))
-    if device.startswith("cuda"):
-        import torch
-        if not torch.cuda.is_available():
-            raise FitodeError("--device cuda: no CUDA device is available here (torch "
-                              f"{torch.__version__}, built {'with' if torch.version.cuda else 'without'} CUDA); "
-                              "use --device cpu")
-    elif device != "cpu":
-        raise FitodeError(f"unknown device {device!r}; use cpu or cuda")
-
-
 def _resolve_equation(eq, eq_file, system, const, free):
     from fitode.eqfile import resolve
     return resolve(eq=eq, eq_file=eq_file, system=system, const=dict(const or {}), free=tuple(free))
@@ -253,27 +202,22 @@ class _Recorder:
     """Keeps every step's numbers so an interrupted or failed fit still leaves its history."""
 
     def __init__(self, names: Iterable[str], chained=None):
+        from fitode.train.history import History
         self.names = list(names)
         self.runs: dict[int, dict[str, Any]] = {}
         self.chained = chained
+        self._history = History
 
     def __call__(self, info) -> None:
         run = self.runs.setdefault(info.run, {"index": info.run, "status": "running", "final": {},
-                                              "history": {"step": [], "loss": [], "mse": [], "kl": [],
-                                                          "constants": {n: [] for n in self.names}}})
-        h = run["history"]
-        h["step"].append(info.step)
-        h["loss"].append(info.loss)
-        h["mse"].append(info.mse)
-        h["kl"].append(info.kl)
-        for n in self.names:
-            h["constants"][n].append(info.constants.get(n, math.nan))
+                                              "history": self._history.for_constants(self.names)})
+        run["history"].append(info.step, info.loss, info.mse, info.kl, info.constants)
         run["final"], run["loss"], run["steps"] = dict(info.constants), info.loss, info.step
         if self.chained is not None:
             self.chained(info)
 
     def rows(self) -> list[dict[str, Any]]:
-        return [self.runs[k] for k in sorted(self.runs)]
+        return [{**self.runs[k], "history": self.runs[k]["history"].to_dict()} for k in sorted(self.runs)]
 
 
 def _try_plot(fn, path: Path, *args, plots_done: list[str], **kw) -> str | None:

@@ -136,7 +136,7 @@ def test_finite_difference_schemes():
 
 
 def test_generate_source_describes_the_step():
-    text = generate_source(parse("x'' = -k*x"), integrator="paper", substeps=4, init="backward")
+    text = generate_source(parse("x'' = -k*x"), integrator="paper", substeps=4, initial_state="backward")
     assert "# Integrator: symplectic" in text and "h = dt/4" in text and "2 x_t - x_{t-1}" in text
     assert "z' = (-z[0] + z[1])/dt" in text
 
@@ -177,7 +177,7 @@ def test_every_shipped_equation_compiles_and_runs(name):
     system, spec = resolve(eq=None, eq_file=None, system=name, const={}, free=())
     params = dict(spec.parameters) if spec is not None else {}
     for init in ("difference", "backward"):
-        block = PhysicsBlock(system, params, init=init, dtype=torch.float64)
+        block = PhysicsBlock(system, params, initial_state=init, dtype=torch.float64)
         torch.manual_seed(0)
         z = 0.5 + 0.1 * torch.rand(4, block.n_context, block.dim, dtype=torch.float64)
         out = block(z, 12, 0.05)

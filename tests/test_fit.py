@@ -31,7 +31,7 @@ def test_recovers_damped_oscillator_from_far_init(oscillator_fit):
     assert abs(est["g1"] - G1) / G1 < 0.25, est
     run = oscillator_fit.runs[0]
     assert run.status == "ok" and run.init == {"g0": 9.0, "g1": 1.0}
-    assert len(run.history["loss"]) == run.steps
+    assert len(run.history.loss) == run.steps
 
 
 def test_latent_follows_the_true_state(oscillator_fit, intensity):

@@ -125,7 +125,7 @@ def test_paper_scheme_one_step_is_exact():
     z = torch.randn(64, 3, 1, dtype=torch.float64)
     alpha, beta, dt = 3.7, 0.3, 0.2
     block = PhysicsBlock(parse("x'' = -alpha*x - beta*x'"), {"alpha": ParamSpec(init=alpha), "beta": ParamSpec(init=beta)},
-                         integrator="symplectic", init="backward", dtype=torch.float64)
+                         integrator="symplectic", initial_state="backward", dtype=torch.float64)
     assert block.n_context == 2
     pred = block(z, 3, dt)
     y0, y1 = z[:, 0, 0], z[:, 1, 0]
@@ -139,7 +139,7 @@ def test_paper_scheme_rollout_is_exact():
     z = torch.randn(16, 2, 1, dtype=torch.float64)
     alpha, beta, dt = 4.0016, 0.08, 0.2
     block = PhysicsBlock(parse("x'' = -alpha*x - beta*x'"), {"alpha": ParamSpec(init=alpha), "beta": ParamSpec(init=beta)},
-                         integrator="paper", init="backward", dtype=torch.float64)
+                         integrator="paper", initial_state="backward", dtype=torch.float64)
     pred = block(z, 50, dt)[..., 0]
     official = _official_damped(z[..., 0], alpha, beta, dt, 50)
     torch.testing.assert_close(pred, official, rtol=1e-11, atol=1e-11)
@@ -150,12 +150,12 @@ def test_paper_first_order_and_free_fall_updates():
     z = torch.tensor([[[0.7], [0.4]], [[-1.2], [3.0]]], dtype=torch.float64)
     dt = 0.1
     led = PhysicsBlock(parse("x' = -alpha*x"), {"alpha": ParamSpec(init=2.5)}, integrator="symplectic",
-                       init="backward", dtype=torch.float64)
+                       initial_state="backward", dtype=torch.float64)
     out = led(z[:, :1], 4, dt)[..., 0]
     expect = z[:, 0, 0, None] * (1 - dt * 2.5) ** torch.arange(4, dtype=torch.float64)
     torch.testing.assert_close(out, expect, rtol=1e-14, atol=1e-14)
     fall = PhysicsBlock(parse("y'' = -alpha"), {"alpha": ParamSpec(init=9.0)}, integrator="symplectic",
-                        init="backward", dtype=torch.float64)
+                        initial_state="backward", dtype=torch.float64)
     out = fall(z, 6, dt)[..., 0]
     y0, y1 = z[:, 0, 0], z[:, 1, 0]
     ref = [y0, y1]

@@ -48,7 +48,7 @@ def test_rollout_from_exact_frames_follows_the_trajectory():
     z = _damped_windows()
     errors = []
     for init, context in (("difference", 5), ("difference", 3), ("backward", 2)):
-        block = _block(init=init, context=context, substeps=4)
+        block = _block(initial_state=init, context=context, substeps=4)
         out = block(z[:, :block.n_context], 20, 0.2)
         errors.append((out - z).abs().max().item())
     # velocity errors dt^4/30 z^(5), dt^2/6 z^(3), dt/2 z^(2) at omega*dt = 0.4
@@ -67,7 +67,7 @@ def test_multi_state_system_shapes_and_values():
 
 def test_mixed_orders_initial_state():
     # second-order x and first-order q: the state holds x, x', q
-    block = PhysicsBlock(parse("x'' = -k*x + q; q' = -q"), dtype=torch.float64, init="difference", context=3)
+    block = PhysicsBlock(parse("x'' = -k*x + q; q' = -q"), dtype=torch.float64, initial_state="difference", context=3)
     t = torch.arange(3, dtype=torch.float64) * 0.1
     z = torch.stack([t ** 2, torch.exp(-t)], -1)[None]  # (1, 3, 2)
     y0 = block.initial_state(z, 0.1)
@@ -83,7 +83,7 @@ def test_bad_inputs_raise():
     with pytest.raises(ParameterError, match="substeps"):
         _block(substeps=0)
     with pytest.raises(ParameterError, match="unknown init"):
-        _block(init="spline")
+        _block(initial_state="spline")
     with pytest.raises(ParameterError, match="context"):
         _block(context=1)
 
@@ -155,7 +155,7 @@ def test_fixed_constants_are_buffers():
 ])
 @pytest.mark.parametrize("integrator", ["rk4", "symplectic"])
 def test_gradcheck_every_constant(eq, params, init, integrator):
-    block = PhysicsBlock(parse(eq), params, integrator=integrator, substeps=2, init=init, dtype=torch.float64)
+    block = PhysicsBlock(parse(eq), params, integrator=integrator, substeps=2, initial_state=init, dtype=torch.float64)
     torch.manual_seed(0)
     z = 0.5 + 0.3 * torch.rand(3, block.n_context, block.dim, dtype=torch.float64)
     names = [n for n, _ in block.named_parameters()]
@@ -171,7 +171,7 @@ def test_gradcheck_every_constant(eq, params, init, integrator):
 # --------------------------------------------------------------------------- learnable initial state
 def test_learnable_init_seeds_from_differences_then_learns():
     z = _damped_windows()
-    block = _block(init="learnable", n_windows=10)
+    block = _block(initial_state="learnable", n_windows=10)
     assert block.n_context == 3
     idx = torch.tensor([0, 3, 5, 7, 1, 2, 4, 6])
     out = block(z[:, :3], 20, 0.2, window_index=idx)
@@ -192,7 +192,7 @@ def test_learnable_init_seeds_from_differences_then_learns():
 def test_learnable_init_removes_the_velocity_bias():
     """With the true velocities set through init_from-like assignment, the rollout is the exact solution."""
     z = _damped_windows()
-    block = _block(init="learnable", n_windows=8, substeps=4)
+    block = _block(initial_state="learnable", n_windows=8, substeps=4)
     idx = torch.arange(8)
     block.init_from(z[:, :3], idx, 0.2)
     t1 = (idx * 3 + 1).double() * 0.2
@@ -202,13 +202,13 @@ def test_learnable_init_removes_the_velocity_bias():
     out = block(z[:, :3], 20, 0.2, window_index=idx)
     assert (out - z).abs().max().item() < 2e-5  # RK4 at h = 0.05: measured 5e-6
     # without window_index the block falls back to the differences
-    diff = _block(init="difference", context=3, substeps=4)
+    diff = _block(initial_state="difference", context=3, substeps=4)
     torch.testing.assert_close(block(z[:, :3], 20, 0.2), diff(z[:, :3], 20, 0.2))
 
 
 def test_learnable_init_needs_n_windows():
     with pytest.raises(ParameterError, match="n_windows"):
-        _block(init="learnable")
+        _block(initial_state="learnable")
 
 
 # --------------------------------------------------------------------------- the non-finite guard
@@ -276,8 +276,8 @@ def test_float32_block_follows_input_dtype():
 def test_cuda_matches_cpu():
     z = _damped_windows()
     for init in ("difference", "learnable"):
-        cpu = _block(init=init, n_windows=8, substeps=2)
-        gpu = _block(init=init, n_windows=8, substeps=2).cuda()
+        cpu = _block(initial_state=init, n_windows=8, substeps=2)
+        gpu = _block(initial_state=init, n_windows=8, substeps=2).cuda()
         idx = torch.arange(8)
         a = cpu(z[:, :5], 20, 0.2, window_index=idx)
         b = gpu(z[:, :5].cuda(), 20, 0.2, window_index=idx.cuda())
@@ -291,7 +291,7 @@ def test_block_pickles_and_copies():
     import copy
     import pickle
 
-    block = _block(init="learnable", n_windows=8)
+    block = _block(initial_state="learnable", n_windows=8)
     block.set_constants({"g0": 3.0})
     z = _damped_windows()[:, :3]
     idx = torch.arange(8)

@@ -77,13 +77,15 @@ def test_interrupt_leaves_an_incomplete_folder(video, tmp_path):
     folder = tmp_path / "i"
     report = json.loads((folder / "result.json").read_text())
     assert report["status"] == "incomplete" and "interrupted" in report["error"]
-    assert [r["status"] for r in report["runs"]] == ["ok", "interrupted"]
-    assert [r["steps"] for r in report["runs"]] == [10, 4]
-    # the first run finished: its estimate is there, flagged as coming from unfinished training
-    assert report["parameters"]["gamma"]["value"] == pytest.approx(report["runs"][0]["final"]["gamma"])
+    # restarts train together: the interrupt stops both where the trainer last looked (every 10 steps)
+    assert [r["status"] for r in report["runs"]] == ["interrupted", "interrupted"]
+    assert [r["steps"] for r in report["runs"]] == [10, 10]
+    # the estimate is there, flagged as coming from unfinished training
+    finals = [r["final"]["gamma"] for r in report["runs"]]
+    assert min(finals) - 1e-9 <= report["parameters"]["gamma"]["value"] <= max(finals) + 1e-9
     assert any("interrupted" in w for w in report["warnings"])
     from fitode.train.result import FitResult
-    assert len(FitResult.load(folder / "fit.json").runs[1].history["loss"]) == 4
+    assert len(FitResult.load(folder / "fit.json").runs[1].history.loss) == 10
     assert {"frames.png", "params.png", "loss.png", "latent.png"} <= {p.name for p in folder.iterdir()}
 
 
@@ -96,11 +98,11 @@ def test_interrupt_before_any_estimate_keeps_the_history(video, tmp_path):
     folder = tmp_path / "i"
     report = json.loads((folder / "result.json").read_text())
     assert report["status"] == "incomplete" and report["input"]["sha256"]
-    assert report["runs"][0]["steps"] == 3
+    assert report["runs"][0]["steps"] == 10
     # the trainer may hand back the interrupted run (fit.json) or nothing (history.json from the steps seen)
     name = "fit.json" if (folder / "fit.json").exists() else "history.json"
     history = json.loads((folder / name).read_text())
-    assert len(history["runs"][0]["history"]["loss"]) == 3
+    assert len(history["runs"][0]["history"]["loss"]) == 10
     assert {"frames.png", "params.png", "loss.png"} <= {p.name for p in folder.iterdir()}
 
 
@@ -117,9 +119,7 @@ def test_real_ctrl_c(video, tmp_path):
     """SIGINT to a running `fitode`: status 130, and the folder says incomplete."""
     out = tmp_path / "ctrl-c"
     p = subprocess.Popen([sys.executable, "-m", "fitode", str(video), "--eq", EQ, "--out", str(out), "--quiet",
-                          "--max-steps", "100000", "--window", "8", "--stride", "1",
-                          # one process: spawned workers may still be importing torch 5 s in
-                          "--workers", "1"],
+                          "--max-steps", "100000", "--window", "8", "--stride", "1"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     try:
         deadline = time.time() + 120

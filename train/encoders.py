@@ -7,6 +7,11 @@ from __future__ import annotations
 
 import torch
 from torch import nn
+from torch.func import functional_call, stack_module_state, vmap
+
+from fitode.errors import ConfigError
+
+from .config import ENCODER_NAMES
 
 
 class LinearEncoder(nn.Module):
@@ -72,13 +77,55 @@ class CNNEncoder(nn.Module):
 
 
 ENCODERS = {"mlp": MLPEncoder, "cnn": CNNEncoder, "linear": LinearEncoder}
+assert tuple(ENCODERS) == ENCODER_NAMES, "train/config.py lists the encoders the CLI offers"
 
 
-def make_encoder(name: str, in_shape: tuple[int, int, int], dim: int) -> nn.Module:
-    try:
-        return ENCODERS[name](in_shape, dim)
-    except KeyError:
-        raise ValueError(f"unknown encoder {name!r}; choose one of {', '.join(ENCODERS)}") from None
+def make_encoder(name: str, in_shape: tuple[int, int, int], dim: int, *, output_mean: float = 0.0) -> nn.Module:
+    """An encoder by name; its output bias starts at the prior's mean, so that a latent that must
+    stay positive (sqrt(h) under the prior N(1, 0.2)) is positive from the first step."""
+    if name not in ENCODERS:
+        raise ConfigError(f"unknown encoder {name!r}; choose one of {', '.join(ENCODERS)}")
+    enc = ENCODERS[name](in_shape, dim)
+    last = [m for m in enc.modules() if isinstance(m, nn.Linear)][-1]
+    with torch.no_grad():
+        last.bias.fill_(output_mean)
+    return enc
+
+
+class BatchedEncoder(nn.Module):
+    """R encoders of one architecture as one module: (N, C, H, W) -> (R, N, d).
+
+    The R modules' weights are stacked along a leading axis (torch.func.stack_module_state) and
+    applied with vmap, so one call runs every restart's encoder as batched matrix products
+    instead of R separate small ones. Restart r starts from exactly the weights a lone
+    make_encoder would draw after torch.manual_seed(seeds[r]).
+    """
+
+    def __init__(self, name: str, in_shape: tuple[int, int, int], dim: int, seeds, *, output_mean: float = 0.0):
+        super().__init__()
+        modules = []
+        for seed in seeds:
+            torch.manual_seed(int(seed))
+            modules.append(make_encoder(name, in_shape, dim, output_mean=output_mean))
+        params, _ = stack_module_state(modules)  # the encoders have no buffers
+        self._names = list(params)
+        self.weights = nn.ParameterList([nn.Parameter(params[n].detach().clone()) for n in self._names])
+        self._base = [modules[0].to("meta")]  # a list: the skeleton is not a submodule (no weights of its own)
+        self.restarts = len(modules)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        base = self._base[0]
+
+        def one(params, inp):
+            return functional_call(base, dict(zip(self._names, params)), (inp,))
+        return vmap(one, in_dims=(0, None))(tuple(self.weights), x)
+
+    def single(self, r: int) -> nn.Module:
+        """Restart r's encoder as an ordinary module (for saving or inspection)."""
+        import copy
+        mod = copy.deepcopy(self._base[0]).to_empty(device=self.weights[0].device)
+        mod.load_state_dict({n: w[r].detach() for n, w in zip(self._names, self.weights)})
+        return mod
 
 
 def normalise_frames(frames: torch.Tensor) -> torch.Tensor:

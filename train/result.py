@@ -2,12 +2,15 @@
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .history import History
+
+from fitode.jsonio import to_jsonable, write_json
 
 
 @dataclass
@@ -28,11 +31,20 @@ class RunRecord:
     final: dict[str, float]
     loss: float
     steps: int
-    status: str  # "ok" | "failed"
+    status: str  # "ok" | "failed" | "interrupted"
     error: str | None = None
     converged: bool = False
     wall_s: float = 0.0
-    history: dict[str, Any] = field(default_factory=dict)  # step, loss, mse, kl, constants{name: [...]}
+    history: History = field(default_factory=History)
+    stop_reason: str = ""  # "converged" | "max_steps" | "non-finite" | "interrupted"
+    gauge: dict[str, dict[str, float]] = field(default_factory=dict)  # state -> {"scale", "offset"}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "RunRecord":
+        d = dict(d)
+        d["history"] = History.from_dict(d.get("history"))
+        known = {f for f in cls.__dataclass_fields__}
+        return cls(**{k: v for k, v in d.items() if k in known})
 
 
 @dataclass
@@ -90,18 +102,16 @@ class FitResult:
             "settings": self.settings,
             "meta": self.meta,
         }
-        return _finite_json(d)
+        return to_jsonable(d)
 
     def save(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.write_text(json.dumps(self.to_dict(), indent=1))
-        return path
+        return write_json(self.to_dict(), path)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "FitResult":
         return cls(
             parameters={k: Estimate(**v) for k, v in d["parameters"].items()},
-            runs=[RunRecord(**r) for r in d["runs"]],
+            runs=[RunRecord.from_dict(r) for r in d["runs"]],
             selected=list(d["selected"]),
             best=int(d["best"]),
             latent=np.asarray(d["latent"], dtype=float),
@@ -142,14 +152,3 @@ class FitResult:
         head = torch.as_tensor(self.latent[start: start + block.n_context], dtype=torch.float64)
         with torch.no_grad():
             return block(head[None], n_frames, self.dt)[0].numpy()
-
-
-def _finite_json(obj: Any) -> Any:
-    """JSON has no NaN/inf: a failed run's non-finite numbers are written as null."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _finite_json(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite_json(v) for v in obj]
-    return obj

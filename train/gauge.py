@@ -1,0 +1,64 @@
+"""The learned gauge x = s*z + b between latent and state, one (s, b) per restart and state.
+
+Which of s and b is learned comes from the equation (fitode.eqparse.gauge); the fixed ones stay
+at 1 and 0 exactly (their gradient is masked off, so Adam never moves them).
+"""
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+import torch
+from torch import nn
+
+from fitode.eqparse.gauge import StateGauge
+
+SCALE_START = 0.2  # a learned scale starts small: a pendulum's small swing, where sin(x) ~ x
+
+
+class Gauge(nn.Module):
+    def __init__(self, plan: Mapping[str, StateGauge], states, restarts: int, prior: tuple[float, float],
+                 enabled: bool = True, dtype: torch.dtype = torch.float32):
+        super().__init__()
+        self.states = list(states)
+        learn_s = [enabled and plan[s].scale_learned for s in self.states]
+        learn_b = [enabled and plan[s].offset_learned for s in self.states]
+        mean, std = prior
+        s0 = [SCALE_START if learn_s[i] else 1.0 for i in range(len(self.states))]
+        # a state under sqrt or log starts inside its domain: three latent spreads above zero
+        b0 = [s0[i] * (3 * std + max(0.0, -mean)) if (learn_b[i] and plan[st].positive) else 0.0
+              for i, st in enumerate(self.states)]
+        d = len(self.states)
+        self.register_buffer("learn_scale", torch.tensor(learn_s, dtype=torch.bool))
+        self.register_buffer("learn_offset", torch.tensor(learn_b, dtype=torch.bool))
+        self.log_scale = nn.Parameter(torch.tensor([math.log(v) for v in s0], dtype=dtype).repeat(restarts, 1))
+        self.offset = nn.Parameter(torch.tensor(b0, dtype=dtype).repeat(restarts, 1))
+        self.register_buffer("log_scale0", self.log_scale.detach().clone())
+        self.register_buffer("offset0", self.offset.detach().clone())
+        assert self.log_scale.shape == (restarts, d)
+
+    @property
+    def learned(self) -> bool:
+        return bool(self.learn_scale.any() or self.learn_offset.any())
+
+    def scale_offset(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """(R, d) scale and offset; fixed entries are constants, not parameters."""
+        s = torch.where(self.learn_scale, self.log_scale, self.log_scale0).exp()
+        b = torch.where(self.learn_offset, self.offset, self.offset0)
+        return s, b
+
+    def to_state(self, z: torch.Tensor) -> torch.Tensor:
+        """z (R, ..., d) -> x = s*z + b."""
+        s, b = self.scale_offset()
+        shape = (s.shape[0],) + (1,) * (z.dim() - 2) + (s.shape[1],)
+        return z * s.reshape(shape) + b.reshape(shape)
+
+    def to_latent(self, x: torch.Tensor) -> torch.Tensor:
+        s, b = self.scale_offset()
+        shape = (s.shape[0],) + (1,) * (x.dim() - 2) + (s.shape[1],)
+        return (x - b.reshape(shape)) / s.reshape(shape)
+
+    def values(self, restart: int) -> dict[str, dict[str, float]]:
+        s, b = self.scale_offset()
+        return {st: {"scale": float(s[restart, i].detach()), "offset": float(b[restart, i].detach())}
+                for i, st in enumerate(self.states)}
