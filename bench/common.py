@@ -196,61 +196,25 @@ def progress(line: str) -> None:
 
 
 # ----------------------------------------------------------------------------- training records
-@dataclass
 class StepRecorder:
-    """A fitode.fit callback that keeps every step (and when it ended), so even a fit that raised
-    (every restart failed) leaves its history, and per-step times can be read afterwards."""
+    """A fitode.fit callback that keeps every step of every restart and when the trainer handed it
+    over, so even a fit that raised (every restart failed) leaves its history. The trainer hands
+    steps over every check_every steps, so the times are those of the hand-overs."""
 
-    names: Sequence[str]
-    step: list[int] = field(default_factory=list)
-    loss: list[float] = field(default_factory=list)
-    mse: list[float] = field(default_factory=list)
-    kl: list[float] = field(default_factory=list)
-    constants: dict[str, list[float]] = field(default_factory=dict)
-    t: list[float] = field(default_factory=list)
-    cpu: list[float] = field(default_factory=list)
-    t0: float = field(default_factory=time.perf_counter)
-    cpu0: float = field(default_factory=time.process_time)
+    def __init__(self, names: Sequence[str]):
+        from fitode.train.history import History
+        self.runs: dict[int, Any] = {}
+        self.t: list[float] = []
+        self.t0 = time.perf_counter()
+        self._new = lambda: History.for_constants(names)
 
     def __call__(self, info) -> None:
         self.t.append(time.perf_counter())
-        self.cpu.append(time.process_time())
-        self.step.append(info.step)
-        self.loss.append(info.loss)
-        self.mse.append(info.mse)
-        self.kl.append(info.kl)
-        for n in self.names:
-            self.constants.setdefault(n, []).append(float(info.constants.get(n, math.nan)))
+        self.runs.setdefault(info.run, self._new()).append(info.step, info.loss, info.mse, info.kl, info.constants)
 
-    def step_times(self) -> np.ndarray:
-        """Seconds of each step (the first measured from the recorder's creation)."""
-        return np.diff(np.asarray([self.t0, *self.t]))
-
-    def cpu_times(self) -> np.ndarray:
-        """CPU seconds of each step (all threads of this process): less sensitive than wall time
-        to other processes on a busy machine."""
-        return np.diff(np.asarray([self.cpu0, *self.cpu]))
-
-    def history(self, every: int = 10) -> dict[str, Any]:
-        return thin_history({"step": self.step, "loss": self.loss, "mse": self.mse, "kl": self.kl,
-                             "constants": self.constants}, every)
-
-
-def thin_history(hist: Mapping[str, Any], every: int = 10) -> dict[str, Any]:
-    """Every `every`-th step of a trainer history (and the last), to keep the JSON small."""
-    steps = list(hist.get("step", []))
-    if not steps:
-        return {"step": [], "loss": [], "mse": [], "kl": [], "constants": {}}
-    keep = list(range(0, len(steps), max(int(every), 1)))
-    if keep[-1] != len(steps) - 1:
-        keep.append(len(steps) - 1)
-
-    def pick(series):
-        return [series[i] for i in keep if i < len(series)]
-
-    return {"step": pick(steps), "loss": pick(hist.get("loss", [])), "mse": pick(hist.get("mse", [])),
-            "kl": pick(hist.get("kl", [])),
-            "constants": {k: pick(v) for k, v in (hist.get("constants") or {}).items()}}
+    def history(self, run: int = 0, every: int = 10) -> dict[str, Any]:
+        h = self.runs.get(run)
+        return h.thinned(every).to_dict() if h is not None else {}
 
 
 # ----------------------------------------------------------------------------- statistics

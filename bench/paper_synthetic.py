@@ -117,8 +117,10 @@ def fit_task(task: dict[str, Any]) -> dict[str, Any]:
         result = fitode.fit(video.frames, video.dt, eq=EQUATION, init=task["init"], restarts=1, seed=task["seed"],
                             callback=rec, progress=False, **options)
     except FitodeError as exc:  # the single restart failed: keep what the recorder saw
-        last = {n: (v[-1] if v else math.nan) for n, v in rec.constants.items()}
-        out.update(final=last, loss=rec.loss[-1] if rec.loss else math.nan, steps=len(rec.step), status="failed",
+        h = rec.runs.get(0)
+        last = {n: (v[-1] if v else math.nan) for n, v in h.constants.items()} if h else {}
+        out.update(final=last, loss=h.loss[-1] if h and h.loss else math.nan, steps=len(h) if h else 0,
+                   status="failed",
                    error=str(exc), converged=False, wall_s=time.perf_counter() - t0, latent_std=math.nan,
                    latent_r2=math.nan, history=rec.history())
         return out
@@ -127,7 +129,7 @@ def fit_task(task: dict[str, Any]) -> dict[str, Any]:
     out.update(final=dict(run.final), loss=run.loss, steps=run.steps, status=run.status, error=run.error,
                converged=bool(run.converged), wall_s=run.wall_s, fit_wall_s=time.perf_counter() - t0,
                latent_std=float(np.std(z)), latent_r2=solution_r2(z, video.state),
-               latent=[float(f"{v:.5g}") for v in z], history=bc.thin_history(run.history))
+               latent=[float(f"{v:.5g}") for v in z], history=run.history.thinned().to_dict())
     return out
 
 

@@ -100,7 +100,7 @@ class Stepper:
         system = parse(EQUATION)
         self.windows = Windows(self.x.shape[0], cfg.window)
         self.encoder = make_encoder(cfg.encoder, tuple(self.x.shape[1:]), system.dim)
-        self.block = PhysicsBlock(system, {}, integrator=cfg.integrator, substeps=cfg.substeps, init=cfg.init_mode,
+        self.block = PhysicsBlock(system, {}, integrator=cfg.integrator, substeps=cfg.substeps, initial_state=cfg.initial_state,
                                   n_windows=self.windows.count)
         self.first = getattr(self.block, "anchor", self.block.n_context - 1) + 1
         groups = [{"params": list(self.encoder.parameters()), "lr": cfg.lr}] + self.block.param_groups(lr=cfg.const_lr)
@@ -198,9 +198,8 @@ def converge(task: dict[str, Any]) -> dict[str, Any]:
         run = fitode.fit(frames, dt, eq=EQUATION, restarts=1, progress=False, callback=rec, **opts).runs[0]
         out.update(steps=run.steps, converged=bool(run.converged), estimate=dict(run.final))
     except FitodeError as exc:
-        out.update(steps=len(rec.step), converged=False, error=str(exc))
-    out.update(wall_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0,
-               step_times=rec.step_times().tolist())
+        out.update(steps=len(rec.runs.get(0, [])), converged=False, error=str(exc))
+    out.update(wall_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0)
     return out
 
 
@@ -266,7 +265,7 @@ def run(args: argparse.Namespace) -> int:
                  "converge_steps": conv["steps"], "loss_diff": steps["loss_diff"]}
             if mode == "per-frame":
                 r.update(converge_s=conv["wall_s"], converge_cpu_s=conv["cpu_s"], converged=conv["converged"],
-                         estimate=conv.get("estimate"), converge_step_times=conv["step_times"])
+                         estimate=conv.get("estimate"))
             rows.append(r)
         pf, pw = rows[-2], rows[-1]
         # the same loss takes the same steps, each dearer by the ratio of the least-contended step times

@@ -34,6 +34,17 @@ class History:
         return {"step": list(self.step), "loss": list(self.loss), "mse": list(self.mse), "kl": list(self.kl),
                 "constants": {n: list(v) for n, v in self.constants.items()}}
 
+    def thinned(self, every: int = 10) -> "History":
+        """Every `every`-th step and the last, to keep a benchmark's JSON small."""
+        keep = list(range(0, len(self), max(int(every), 1)))
+        if keep and keep[-1] != len(self) - 1:
+            keep.append(len(self) - 1)
+
+        def pick(series):
+            return [series[i] for i in keep]
+        return History(pick(self.step), pick(self.loss), pick(self.mse), pick(self.kl),
+                       {n: pick(v) for n, v in self.constants.items()})
+
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> "History":
         d = d or {}
