@@ -6,8 +6,11 @@ Each verb is a module `fitode.cmd_<verb>` with `add_arguments(parser)` and
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import signal
 import sys
+import threading
 
 from fitode.errors import FitodeError
 
@@ -57,15 +60,43 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     verb = argv[0] if argv[0] in VERBS else "run"
     rest = argv[1:] if argv[0] in VERBS else argv
+    with _sigterm_as_interrupt() as term:
+        try:
+            args = build_parser(verb).parse_args(rest)
+            return int(_module(verb).run(args) or 0)
+        except FitodeError as exc:
+            print(f"fitode: error: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print("fitode: terminated" if term else "fitode: interrupted", file=sys.stderr)
+            return 128 + signal.SIGTERM if term else 130
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """SIGTERM (a scheduler's or `kill`'s stop) raises KeyboardInterrupt in the main thread, so it
+    takes Ctrl-C's path: a run leaves its folder marked incomplete, a batch stops its workers and
+    writes a consistent summary. The list it yields is non-empty once SIGTERM arrived.
+    """
+    term: list[int] = []
+    if threading.current_thread() is not threading.main_thread():  # signal.signal works only there
+        yield term
+        return
+
+    def handler(signum, frame):
+        if term:  # a second SIGTERM must not cut short the cleanup that the first one started
+            return
+        term.append(signum)
+        raise KeyboardInterrupt
+
+    # a Python handler, not SIG_IGN, after the first signal: an ignored signal stays ignored across
+    # exec, so processes started during the cleanup could no longer be terminated
+    previous = signal.signal(signal.SIGTERM, handler)
     try:
-        args = build_parser(verb).parse_args(rest)
-        return int(_module(verb).run(args) or 0)
-    except FitodeError as exc:
-        print(f"fitode: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("fitode: interrupted", file=sys.stderr)
-        return 130
+        yield term
+    finally:
+        if previous is not None:  # None: a handler not set from Python, which cannot be restored
+            signal.signal(signal.SIGTERM, previous)  # main() is also called in-process (tests, scripts)
 
 
 if __name__ == "__main__":

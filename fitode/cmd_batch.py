@@ -9,7 +9,8 @@ import argparse
 import sys
 
 from fitode.errors import FitodeError
-from fitode.options import positive_int
+from fitode.options import (add_equation_arguments, add_training_arguments, parse_assignments, parse_names,
+                            positive_int, training_options)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -29,27 +30,29 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                     help="keep jobs that failed before (same settings) as failed instead of retrying them")
     rs.add_argument("--dry-run", action="store_true", help="validate the manifest, say what would run, run nothing")
 
-    d = p.add_argument_group("defaults for what the manifest leaves unset")
-    eq = d.add_mutually_exclusive_group()
-    eq.add_argument("--eq", metavar="TEXT", help="the equation of every row that gives none")
-    eq.add_argument("--eq-file", metavar="PATH", help="an equation file (TOML)")
-    eq.add_argument("--system", metavar="NAME", help="a shipped equation file by name")
+    # defaults for what the manifest leaves unset (a row wins over [defaults], which wins over these)
+    add_equation_arguments(p, title="equation of every row that gives none", required=False, init=True)
+    add_training_arguments(p, title="training, for what the manifest leaves unset", fields=TRAINING_FIELDS)
+    d = p.add_argument_group("video, for what the manifest leaves unset")
     d.add_argument("--fps", type=float, metavar="F", help="real frame rate")
     d.add_argument("--stride", metavar="K|auto", help="frame stride (default auto)")
-    d.add_argument("--restarts", type=positive_int, metavar="N", help="restarts per video (default 3)")
-    d.add_argument("--max-steps", type=positive_int, metavar="N", help="step limit per restart (default 2000)")
-    d.add_argument("--min-steps", type=int, metavar="N", help="steps before early stopping may stop a restart")
-    d.add_argument("--window", type=positive_int, metavar="N", help="frames per training window (default 20)")
-    d.add_argument("--integrator", choices=["rk4", "euler", "symplectic"], help="ODE integrator (default rk4)")
-    d.add_argument("--encoder", choices=["mlp", "cnn", "linear"], help="frame encoder (default mlp)")
-    d.add_argument("--seed", type=int, metavar="N", help="random seed of every job (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or chatter; only errors")
 
 
+# each job runs single-threaded on its own core (and where the batch puts it): no --device, --threads
+TRAINING_FIELDS = ("restarts", "max_steps", "min_steps", "window", "integrator", "encoder", "seed")
+
+
 def defaults_from_args(args: argparse.Namespace) -> dict:
-    keys = ("eq", "eq_file", "system", "fps", "stride", "restarts", "max_steps", "min_steps", "window",
-            "integrator", "encoder", "seed")
-    return {k: getattr(args, k) for k in keys if getattr(args, k, None) is not None}
+    """The flags as manifest keys (const.NAME, init.NAME, free), for rows that leave them unset."""
+    out = {k: getattr(args, k) for k in ("eq", "eq_file", "system", "fps", "stride")
+           if getattr(args, k, None) is not None}
+    out.update(training_options(args, TRAINING_FIELDS))
+    out.update({f"const.{k}": v for k, v in parse_assignments(args.const, "--const").items()})
+    out.update({f"init.{k}": v for k, v in parse_assignments(args.init, "--init").items()})
+    if args.free:
+        out["free"] = parse_names(args.free, "--free")
+    return out
 
 
 def run(args: argparse.Namespace) -> int:

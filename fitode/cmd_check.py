@@ -11,20 +11,15 @@ import argparse
 import textwrap
 
 from fitode.errors import FitodeError
+from fitode.options import add_equation_arguments
 
 _WIDTH = 100
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    src = p.add_mutually_exclusive_group()
-    src.add_argument("--eq", metavar="TEXT", help="the equation, e.g. \"x'' = -g/L*sin(x) - z*x'\"")
-    src.add_argument("--eq-file", metavar="PATH", help="an equation file (TOML)")
-    src.add_argument("--system", metavar="NAME", help="a shipped equation file by name (see --list)")
+    # not required: --list stands in for an equation
+    _, src = add_equation_arguments(p, title="equation (exactly one, or --list)", required=False)
     src.add_argument("--list", action="store_true", help="list the shipped systems and exit")
-    p.add_argument("--const", metavar="NAME=VALUE", action="append", default=[],
-                   help="fix a constant at a value (repeatable, or comma-separated): --const g=9.81")
-    p.add_argument("--free", metavar="NAME", action="append", default=[],
-                   help="make a known constant learnable (repeatable, or comma-separated): --free g")
 
 
 def run(args: argparse.Namespace) -> int:

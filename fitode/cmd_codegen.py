@@ -10,24 +10,16 @@ initial state is built from a window's first frames.
 from __future__ import annotations
 
 import argparse
-import math
 
 from fitode.errors import FitodeError
-from fitode.options import positive_int
+from fitode.options import add_equation_arguments, parse_assignments, positive_int
+from fitode.train.config import INTEGRATOR_NAMES
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    eq = p.add_argument_group("equation (exactly one)")
-    ex = eq.add_mutually_exclusive_group(required=True)
-    ex.add_argument("--eq", metavar="TEXT", help="the equation, e.g. \"x'' = -k*x - c*x'\"")
-    ex.add_argument("--system", metavar="NAME", help="a shipped equation file by name")
-    ex.add_argument("--eq-file", metavar="PATH", help="an equation file (TOML)")
-    eq.add_argument("--const", metavar="NAME=VALUE", action="append", default=[],
-                    help="fix a constant to a value (repeatable)")
-    eq.add_argument("--free", metavar="NAME", action="append", default=[],
-                    help="learn a known constant such as g instead of fixing it (repeatable)")
+    add_equation_arguments(p)
     gen = p.add_argument_group("what to describe")
-    gen.add_argument("--integrator", default="rk4", choices=["rk4", "symplectic", "euler", "paper"],
+    gen.add_argument("--integrator", default="rk4", choices=[*INTEGRATOR_NAMES, "paper"],
                      help="integrator whose step is described (default rk4; paper = symplectic)")
     gen.add_argument("--substeps", type=positive_int, default=1, metavar="N", help="sub-steps per frame (default 1)")
     gen.add_argument("--init", default="difference", choices=["difference", "backward", "learnable"],
@@ -37,17 +29,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _assignments(items: list[str]) -> dict[str, float]:
-    out: dict[str, float] = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        try:
-            number = float(value)
-        except ValueError:
-            number = math.nan
-        if not sep or not name.strip() or not math.isfinite(number):
-            raise FitodeError(f"--const {item!r}: expected NAME=VALUE with a finite number")
-        out[name.strip()] = number
-    return out
+    return parse_assignments(items, "--const")
 
 
 def resolve_system(args: argparse.Namespace):

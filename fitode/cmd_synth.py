@@ -13,6 +13,7 @@ import argparse
 from pathlib import Path
 
 from fitode.errors import FitodeError
+from fitode.options import add_equation_arguments, parse_assignments
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -34,11 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     eq = sub.add_parser("equation", help="any equation, simulated (RK4) and rendered",
                         description="Simulate an equation with fitode's RK4 and render each state "
                                     "as motion, intensity or scale.")
-    which = eq.add_mutually_exclusive_group(required=True)
-    which.add_argument("--system", metavar="NAME", help="a shipped equation file, e.g. pendulum")
-    which.add_argument("--eq", metavar="TEXT", help="equation text, e.g. \"x'' = -k*x\"")
-    eq.add_argument("--const", metavar="NAME=VALUE", nargs="+", action="extend", default=[],
-                    help="value of every learnable constant (and optionally known ones such as g)")
+    # no --eq-file or --free: the renderer takes a shipped name or text and needs every constant's value
+    add_equation_arguments(eq, eq_file=False, free=False, many=True,
+                           const_help="value of every learnable constant (and optionally known ones such as g)")
     eq.add_argument("--y0", metavar="NAME=VALUE", nargs="+", action="extend", default=[],
                     help="initial state: every state, optionally derivatives (quote primes: \"x'=0\"; "
                          "missing derivatives are 0)")
@@ -94,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         v = synth.paper_video(args.kind, n_frames=args.frames, dt=args.dt, size=args.size, seed=args.seed,
                               g0=args.g0, g1=args.g1, z0=args.z0, v0=args.v0, noise=args.noise)
     elif args.what == "equation":
-        v = synth.render_equation(args.system or args.eq, constants=_pairs(args.const, "--const"),
+        v = synth.render_equation(args.system or args.eq, constants=parse_assignments(args.const, "--const"),
                                   y0=_pairs(args.y0, "--y0"), n_frames=args.frames, dt=args.dt,
                                   mode=args.mode, size=args.size, seed=args.seed, substeps=args.substeps,
                                   noise=args.noise)

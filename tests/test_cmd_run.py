@@ -80,6 +80,8 @@ def error_cases(tmp: Path, video: Path, short: Path) -> dict[str, list]:
         "bad const": [video, *eq, "--const", "gamma"],
         "bad init name": [video, *eq, "--init", "beta=1"],
         "bad train fraction": [video, *eq, "--train-fraction", "1.5"],
+        "window too short": [video, *eq, "--window", "2"],
+        "workers is gone": [video, *eq, "--workers", "2"],
         "equation syntax": [video, "--eq", "I' = -gamma*"],
         "equation with t": [video, "--eq", "I' = -gamma*I*t"],
         "missing eq file": [video, "--eq-file", tmp / "nope.toml"],
@@ -95,7 +97,7 @@ def error_cases(tmp: Path, video: Path, short: Path) -> dict[str, list]:
 CASES = ["missing file", "unreadable video", "zero frames", "fewer frames than a window", "unknown flag",
          "no equation", "two equations", "restarts 0", "max-steps text", "bad integrator", "bad encoder", "bad roi",
          "roi outside", "bad size", "bad stride", "bad fps", "start after end", "bad prior", "prior std 0",
-         "bad const", "bad init name", "bad train fraction", "equation syntax", "equation with t",
+         "bad const", "bad init name", "bad train fraction", "window too short", "workers is gone", "equation syntax", "equation with t",
          "missing eq file", "unknown system", "calibrate unknown state", "calibrate outside clip",
          "calibrate one point", "out not empty", "cuda without cuda"]
 
@@ -162,7 +164,7 @@ def test_run_writes_the_folder_and_json_goes_to_stdout(video, tmp_path, capsys):
         assert_png(out_dir / name)
     from fitode.train.result import FitResult
     fit = FitResult.load(out_dir / "fit.json")
-    assert len(fit.runs[0].history["loss"]) == fit.runs[0].steps
+    assert len(fit.runs[0].history.loss) == fit.runs[0].steps
 
 
 def test_quiet_prints_only_the_table_and_calibration_is_recorded(video, tmp_path, capsys):
@@ -199,5 +201,7 @@ def test_help_lists_every_flag(capsys):
     for flag in ("--eq", "--eq-file", "--system", "--const", "--free", "--init", "--prior", "--restarts",
                  "--max-steps", "--integrator", "--encoder", "--device", "--seed", "--out", "--quiet", "--json",
                  "--fps", "--start", "--end", "--roi", "--size", "--color", "--stride", "--mask", "--calibrate",
-                 "--train-fraction", "--window", "--workers"):
+                 "--train-fraction", "--window", "--threads"):
         assert flag in text, flag
+    assert "--workers" not in text  # restarts train as one batched model, in this process
+    assert "(default 4)" in text  # the restarts' default, read from fitode.train.config

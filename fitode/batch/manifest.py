@@ -60,8 +60,8 @@ META_KEYS = ("video", "setting", "name")
 MAP_PREFIXES = ("const", "init", "true")
 # files the batch writes beside the job folders
 RESERVED_NAMES = {"batch.json", "summary.csv", "summary.json", "aggregate.csv", "aggregate.json"}
-# Options the batch sets itself, or that make no sense per job.
-_NOT_PER_JOB = {"prior", "device"}
+# Options the batch sets itself, or that make no sense per job (each job has one core: no threads).
+_NOT_PER_JOB = {"prior", "device", "threads"}
 
 
 class ManifestError(FitodeError):
@@ -105,7 +105,7 @@ class Manifest:
 
 def train_option_types() -> dict[str, type]:
     """Trainer options a row may set, with the type its value converts to."""
-    from fitode.train.trainer import TrainConfig  # imports torch: only when a manifest is read
+    from fitode.train.config import TrainConfig
 
     hints = typing.get_type_hints(TrainConfig)
     out: dict[str, type] = {}
@@ -462,7 +462,7 @@ def _typed(value: Any, typ: type, src: _Row, key: str) -> Any:
         return _bool(value, src, key)
     if typ is int:
         x = _int(value, src, key)
-        if key in ("restarts", "max_steps", "window", "substeps", "patience", "batch_windows") and x < 1:
+        if key in ("restarts", "max_steps", "window", "substeps", "patience", "batch_windows", "check_every") and x < 1:
             raise src.error(key, f"must be at least 1, got {x}")
         if key in ("min_steps", "seed") and x < 0:
             raise src.error(key, f"must not be negative, got {x}")
