@@ -146,6 +146,25 @@ class Calibration:
         return [f"{s}\ncalibrated (units of --calibrate)" if s in self.maps else latent_label(s)
                 for s in states]
 
+    def converted_names(self) -> list[str]:
+        """Constants now in the units of the calibration."""
+        return [n for n, c in self.constants.items() if c["converted"]]
+
+    def findings(self, params: Mapping[str, Any]):
+        """Verdict findings: a calibrated constant outside the bounds its equation file declares
+        (g < 0 for a fall) is not a physical answer. Two calibration points fix the map exactly, so
+        they cannot reveal a bad fit themselves; the bounds can."""
+        from fitode.train.verdict import Finding
+        out = []
+        for name in self.converted_names():
+            v, spec = self.constants[name]["after"], params.get(name)
+            lo, hi = (spec.min, spec.max) if spec is not None else (None, None)
+            if (lo is not None and not v > lo) or (hi is not None and not v < hi):
+                out.append(Finding("not trustworthy", f"calibrated {name} = {v:.4g} lies outside its bounds "
+                                   f"({'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}): "
+                                   "the latent does not follow the calibrated state"))
+        return out
+
     def lines(self) -> list[str]:
         out = ["calibration: " + "; ".join(f"{s} = {m.a:.6g}*latent + {m.b:.6g}"
                                             + (f" (rms {m.rms:.3g} over {m.n_points} points)" if m.n_points > 2 else "")

@@ -53,6 +53,6 @@ def run(args: argparse.Namespace) -> int:
     from fitode.codegen import generate_source
 
     system = resolve_system(args)
-    print(generate_source(system, integrator=args.integrator, substeps=args.substeps, init=args.init,
+    print(generate_source(system, integrator=args.integrator, substeps=args.substeps, initial_state=args.init,
                           context=args.context), end="")
     return 0

@@ -73,7 +73,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
         from fitode.calibrate import parse_calibration
         points = parse_calibration(calibrate, ode.states)
     target = _check_out_dir(out_dir)
-    analysis = rep.analysis_dict(ode)
+    ident = rep.identifiability(ode)
+    analysis = rep.analysis_dict(ident)
     params = dict(spec.parameters) if spec is not None else {}
 
     clip = _read(video, fps=fps, start=start, end=end, roi=roi, size=size, color=color, stride=stride, mask=mask,
@@ -126,6 +127,9 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
                                        seed=int(settings.get("seed", 0)))
         for line in calibration.lines():
             say(line)
+        from fitode.train.verdict import rejudge
+        result.verdicts = {n: v.to_dict() for n, v in rejudge(
+            result, ident, calibrated=calibration.converted_names(), extra=calibration.findings(params)).items()}
     rep.complete_report(report, result, analysis, calibration, t0)
     if interrupted:
         stopped = [r for r in result.runs if r.status == "interrupted"]

@@ -34,37 +34,24 @@ SPREAD_WARN = 0.05  # restarts "disagree" when their standard deviation exceeds 
 
 
 # ----------------------------------------------------------------------------- identifiability
-def analysis_dict(ode) -> dict[str, Any] | None:
-    """The equation's identifiability analysis as plain data, or None when it cannot be run.
-
-    Returns {"constants": {name: {separable, combination, scale, reason}}, "lines": [...]}.
-    """
+def identifiability(ode):
+    """The equation's IdentifiabilityReport, or None when the analysis itself fails (it is advice:
+    the fit can go on without it)."""
+    from fitode.eqparse import analyse
     try:
-        from fitode.eqparse import analyse
-    except ImportError:
+        return analyse(ode)
+    except Exception:  # noqa: BLE001 - sympy can fail in many ways on unusual equations
         return None
-    try:
-        raw = analyse(ode)
-    except Exception as exc:  # noqa: BLE001 - the analysis is advice; the fit can go on without it
-        return {"constants": {}, "lines": [f"identifiability analysis failed: {exc}"]}
-    return _normalise_analysis(raw, ode.learnable)
 
 
-def _normalise_analysis(raw, names: Iterable[str]) -> dict[str, Any]:
-    per = getattr(raw, "constants", None)
-    if per is None and isinstance(raw, Mapping):
-        per = raw
-    if isinstance(per, (list, tuple)):  # IdentifiabilityReport.constants: ConstantReport items with .name
-        per = {getattr(c, "name", None): c for c in per}
-    out: dict[str, dict[str, Any]] = {}
-    for name in names:
-        item = per.get(name) if isinstance(per, Mapping) else None
-        if item is None:
-            continue
-        d = asdict(item) if is_dataclass(item) else (dict(item) if isinstance(item, Mapping) else vars(item))
-        out[name] = {k: _plain(d.get(k)) for k in ("separable", "combination", "scale", "reason")}
-    lines = list(raw.lines()) if hasattr(raw, "lines") else []
-    return {"constants": out, "lines": lines}
+def analysis_dict(ident) -> dict[str, Any]:
+    """An IdentifiabilityReport as plain data:
+    {"constants": {name: {separable, combination, scale, reason}}, "lines": [...]}."""
+    if ident is None:
+        return {"constants": {}, "lines": ["identifiability analysis failed"]}
+    out = {c.name: {"separable": c.separable, "combination": c.combination, "scale": c.scale, "reason": c.reason}
+           for c in ident.constants}
+    return {"constants": out, "lines": list(ident.lines())}
 
 
 def _plain(v: Any) -> Any:
@@ -213,7 +200,8 @@ def complete_report(report: dict[str, Any], result, analysis, calibration, t0: f
         unit = est.unit or units.get(name)
         entry = {"value": value, "std": std, "n_runs": est.n_runs, "unit": unit,
                  "scale": scale_of(analysis, name), "measurable": measurable(analysis, name),
-                 "calibrated": bool(conv and conv["converted"]), "latent_units": False, "warnings": []}
+                 "calibrated": bool(conv and conv["converted"]), "latent_units": False, "warnings": [],
+                 **_verdict(result, name)}
         if scale_dependent(analysis, name) and not entry["calibrated"]:
             entry["latent_units"] = True
             entry["warnings"].append("in latent units: it depends on the latent's arbitrary scale; "
@@ -254,6 +242,7 @@ def complete_report(report: dict[str, Any], result, analysis, calibration, t0: f
     report["runs"] = [_run_entry(asdict(r), r.index in result.selected) for r in result.runs]
     report["selected"] = list(result.selected)
     report["best"] = int(result.best)
+    report["checks"] = to_jsonable(result.checks)
     latent, rollout = result.latent, result.rollout
     if calibration is not None:
         latent, rollout = calibration.latent, calibration.rollout
@@ -271,8 +260,14 @@ def complete_report(report: dict[str, Any], result, analysis, calibration, t0: f
     report.pop("error", None)
 
 
+def _verdict(result, name: str) -> dict[str, str]:
+    v = result.verdicts.get(name) or {"verdict": "not trustworthy", "reason": "no verdict was made"}
+    return {"verdict": v["verdict"], "verdict_reason": v["reason"]}
+
+
 def _run_entry(run: dict[str, Any], selected: bool) -> dict[str, Any]:
-    keep = ("index", "seed", "init", "final", "loss", "steps", "status", "error", "converged", "wall_s")
+    keep = ("index", "seed", "init", "final", "loss", "steps", "status", "error", "converged", "wall_s",
+            "score", "stop_reason", "gauge")
     out = {k: run.get(k) for k in keep}
     out["selected"] = selected
     return out
@@ -296,9 +291,12 @@ def run_lines(result) -> list[str]:
         mark = "*" if r.index == result.best else ("+" if r.index in result.selected else " ")
         consts = " ".join(f"{k}={v:.5g}" for k, v in r.final.items())
         state = "settled" if r.converged else ("failed: " + (r.error or "?") if r.status != "ok" else "step limit")
-        lines.append(f"run {r.index + 1:>2}{mark} {r.steps:>5} steps {r.wall_s:6.1f} s  loss {r.loss:.4g}  "
+        score = f"score {r.score:5.2f}" if r.score is not None else "score   -  "
+        lines.append(f"run {r.index + 1:>2}{mark} {r.steps:>5} steps  loss {r.loss:.4g}  {score}  "
                      f"{consts}  ({state})")
-    lines.append("           (* best run, + also averaged into the estimate)")
+    wall = max((r.wall_s for r in result.runs), default=0.0)
+    lines.append(f"           (* best run, + also averaged into the estimate; {len(result.runs)} restarts "
+                 f"trained together in {wall:.1f} s; score: does the latent tell the frames apart, 1 = fully)")
     return lines
 
 
@@ -313,17 +311,19 @@ def format_table(report: Mapping[str, Any]) -> str:
     if params:
         n_runs = len(report.get("runs", []))
         n_sel = len(report.get("selected", []))
-        rows = [("constant", "value", "spread", "unit", "")]
+        rows = [("constant", "value", "spread", "unit", "verdict")]
         for name, p in params.items():
             unit = p.get("unit") or ("latent units" if p.get("latent_units") else "")
-            flag = "!" if p.get("warnings") else ""
             spread = f"±{_spread(p['std'])}" if p.get("n_runs", 1) > 1 else "-"
-            rows.append((name, _num(p["value"]), spread, unit, flag))
+            rows.append((name, _num(p["value"]), spread, unit, p.get("verdict", "")))
         widths = [max(len(r[i]) for r in rows) for i in range(4)]
         out.append(f"estimates (mean over {n_sel} of {n_runs} restarts; spread = their standard deviation)")
         for i, r in enumerate(rows):
             out.append("  " + "  ".join([r[0].ljust(widths[0]), r[1].rjust(widths[1]), r[2].rjust(widths[2]),
-                                         r[3].ljust(widths[3]), r[4]]).rstrip())
+                                         r[3].ljust(widths[3]), r[4].upper() if i else r[4]]).rstrip())
+        for name, p in params.items():
+            if p.get("verdict_reason"):
+                out.append(f"  {name}: {p['verdict']}: {p['verdict_reason']}")
     cal = report.get("calibration")
     if cal:
         out.append("calibration: " + "; ".join(f"{s} = {m['a']:.6g}*latent + {m['b']:.6g}"

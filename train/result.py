@@ -38,6 +38,7 @@ class RunRecord:
     history: History = field(default_factory=History)
     stop_reason: str = ""  # "converged" | "max_steps" | "non-finite" | "interrupted"
     gauge: dict[str, dict[str, float]] = field(default_factory=dict)  # state -> {"scale", "offset"}
+    score: float | None = None  # does its latent tell the frames apart (fitode.train.score); None: not scored
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "RunRecord":
@@ -75,6 +76,8 @@ class FitResult:
     settings: dict[str, Any]
     selection_factor: float = 1.5
     meta: dict[str, Any] = field(default_factory=dict)
+    verdicts: dict[str, dict[str, str]] = field(default_factory=dict)  # name -> {"verdict", "reason"}
+    checks: dict[str, Any] = field(default_factory=dict)  # the numbers behind the verdicts
 
     @property
     def values(self) -> dict[str, float]:
@@ -101,6 +104,8 @@ class FitResult:
             "runs": [asdict(r) for r in self.runs],
             "settings": self.settings,
             "meta": self.meta,
+            "verdicts": self.verdicts,
+            "checks": self.checks,
         }
         return to_jsonable(d)
 
@@ -125,6 +130,8 @@ class FitResult:
             settings=dict(d["settings"]),
             selection_factor=float(d.get("selection_factor", 1.5)),
             meta=dict(d.get("meta", {})),
+            verdicts=dict(d.get("verdicts", {})),
+            checks=dict(d.get("checks", {})),
         )
 
     @classmethod
@@ -149,6 +156,10 @@ class FitResult:
         block.set_constants(self.values)
         if not 0 <= start <= len(self.latent) - block.n_context:
             raise ValueError(f"start must leave {block.n_context} encoded frames to begin from")
-        head = torch.as_tensor(self.latent[start: start + block.n_context], dtype=torch.float64)
+        # the equation sees the state x = s*z + b of the best run's gauge, the plots the latent z
+        gauge = self.runs[self.best].gauge if self.runs else {}
+        s = np.array([gauge.get(st, {}).get("scale", 1.0) for st in self.states])
+        b = np.array([gauge.get(st, {}).get("offset", 0.0) for st in self.states])
+        head = torch.as_tensor(self.latent[start: start + block.n_context] * s + b, dtype=torch.float64)
         with torch.no_grad():
-            return block(head[None], n_frames, self.dt)[0].numpy()
+            return (block(head[None], n_frames, self.dt)[0].numpy() - b) / s

@@ -13,7 +13,7 @@ import numpy as np
 import torch
 
 from fitode.codegen.constants import reparam_for
-from fitode.eqparse import OdeSystem, ParamSpec
+from fitode.eqparse import OdeSystem, ParamSpec, analyse
 from fitode.eqparse.gauge import gauge_plan
 from fitode.errors import TrainingError
 
@@ -21,7 +21,11 @@ from .config import TrainConfig
 from .loop import Callback, StepInfo, Trained, train_restarts
 from .observe import ObservationModel, observation_model
 from .result import Estimate, FitResult
+from .score import principal_components, separation_score
 from .selection import select_runs
+from .verdict import judge, video_checks
+
+SCORE_EXCLUDE = 2  # frames either side left out of the score's neighbours (see fitode.train.score)
 
 __all__ = ["Callback", "StepInfo", "TrainConfig", "fit_frames", "restart_inits", "select_runs"]
 
@@ -80,6 +84,10 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
                                  observation=observation, plan=plan, callback=callback, progress=progress)
         latents, rollouts = _trajectories(trained, frames, dt)
     records = trained.records
+    coefs = principal_components(frames[:n_train])
+    for r in records:
+        if r.status != "failed":
+            r.score = separation_score(latents[r.index, :n_train], coefs, exclude=SCORE_EXCLUDE)
     interrupted = any(r.status == "interrupted" for r in records)
     selected = select_runs(records, config.selection_factor)
     if not selected and interrupted:
@@ -95,6 +103,10 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         vals = np.array([records[i].final[name] for i in selected])
         unit = params.get(name, ParamSpec()).unit
         estimates[name] = Estimate(float(vals.mean()), float(vals.std()) if len(vals) > 1 else 0.0, len(vals), unit)
+    findings, numbers = video_checks(latents[best, :n_train], rollouts[best, :n_train], coefs, dt,
+                                     records[best].score, oscillator=system.max_order >= 2)
+    verdicts = judge(system.learnable, records, selected, {n: e.value for n, e in estimates.items()}, findings,
+                     analysis=analyse(system))
     return FitResult(
         parameters=estimates, runs=records, selected=selected, best=best,
         latent=latents[best], rollout=rollouts[best], time=np.arange(n_total) * dt, train_frames=n_train, dt=dt,
@@ -102,6 +114,8 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         settings=config.as_dict(), selection_factor=config.selection_factor,
         meta={**(meta or {}), "interrupted": interrupted, "observation": observation.name,
               "gauge": {s: g.describe() for s, g in plan.items()}},
+        verdicts={n: v.to_dict() for n, v in verdicts.items()},
+        checks={**numbers, "findings": [f.to_dict() for f in findings]},
     )
 
 

@@ -1,0 +1,150 @@
+"""A verdict on every estimate: trusted, ambiguous or not trustworthy, with the reason in one line.
+
+The loss alone cannot judge a fit (the harmonic trap, a latent that follows a start-up transient,
+pixel noise fitted by an encoder with more weights than frames). The verdict combines what the
+trainer can check against the video itself:
+- the score of the best restart (fitode.train.score): does its latent tell the frames apart?
+- the periods: where the frames repeat, the latent and the equation's own solution (the rollout
+  with the estimated constants) must repeat with them;
+- activity: the latent must move wherever the frames still change, not only in a transient;
+- agreement: the restarts the estimate comes from must agree, and a restart that scored as well
+  but ended elsewhere makes the estimate ambiguous;
+- what the equation lets a video measure (fitode.eqparse.identify): a constant that enters only
+  through a combination, or whose value depends on the latent's units until calibrated.
+The worst finding decides: any "not trustworthy" beats "ambiguous", which beats "trusted".
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from .score import dominant_period
+from .selection import SCORE_MARGIN
+
+LEVELS = ("trusted", "ambiguous", "not trustworthy")
+SCORE_MIN = 0.5  # right latents scored 0.78-0.995 on every motion case tried, wrong ones -0.5 to 0.45
+PERIOD_TOL = 0.1
+AGREE_TOL = 0.05
+QUIET = 0.1  # a quarter of the clip where the latent moves less than this fraction of its spread
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One check's outcome: a level and a one-line reason (applies to every constant)."""
+
+    level: str
+    reason: str
+
+    def to_dict(self) -> dict[str, str]:
+        return {"level": self.level, "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class Verdict:
+    verdict: str
+    reason: str
+
+    def to_dict(self) -> dict[str, str]:
+        return {"verdict": self.verdict, "reason": self.reason}
+
+
+def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt: float, score: float | None,
+                 oscillator: bool) -> tuple[list[Finding], dict[str, float | None]]:
+    """Findings that hold for every constant, from the best run's latent and rollout (training
+    frames only) and the frames' principal components; and the numbers behind them."""
+    findings: list[Finding] = []
+    numbers: dict[str, float | None] = {"score": score}
+    if score is None or not math.isfinite(score) or score < SCORE_MIN:
+        shown = "nan" if score is None or not math.isfinite(score) else f"{score:.2f}"
+        findings.append(Finding("not trustworthy", f"no restart's latent tells the frames apart (best score {shown}; "
+                                "a latent that follows what the video shows scores above "
+                                f"{SCORE_MIN:g}): the object may be out of view, too small, or not moving"))
+    t_frames = dominant_period(coefs, dt) if oscillator else None
+    t_latent = dominant_period(latent, dt) if oscillator else None
+    finite_roll = rollout[np.all(np.isfinite(rollout), axis=1)] if rollout.size else rollout
+    t_roll = dominant_period(finite_roll, dt) if oscillator and len(finite_roll) == len(rollout) else None
+    numbers.update(period_frames=t_frames, period_latent=t_latent, period_equation=t_roll)
+    if t_frames is not None and t_latent is not None and abs(t_latent - t_frames) > PERIOD_TOL * t_frames:
+        findings.append(Finding("not trustworthy", f"the latent repeats every {t_latent:.3g} s but the frames every "
+                                f"{t_frames:.3g} s: the latent is folded (such as x^2, at twice the frequency)"))
+    if t_frames is not None and t_roll is not None and abs(t_roll - t_frames) > PERIOD_TOL * t_frames:
+        findings.append(Finding("not trustworthy", f"the equation with these constants repeats every {t_roll:.3g} s "
+                                f"but the frames every {t_frames:.3g} s"))
+    quiet = _quiet_quarter(latent, coefs, dt)
+    if quiet is not None:
+        findings.append(Finding("not trustworthy", quiet))
+    return findings, numbers
+
+
+def _quiet_quarter(latent: np.ndarray, coefs: np.ndarray, dt: float) -> str | None:
+    """A quarter of the clip where the frames change but the latent barely moves."""
+    n = len(latent)
+    if n < 16:
+        return None
+    spread_z = float(np.std(latent, axis=0).max())
+    spread_f = float(np.sqrt((np.var(coefs, axis=0)).sum()))
+    if spread_z <= 0 or spread_f <= 0:
+        return None
+    for q in range(1, 4):
+        part = slice(q * n // 4, (q + 1) * n // 4)
+        moves_z = float(np.std(latent[part], axis=0).max()) / spread_z
+        moves_f = float(np.sqrt(np.var(coefs[part], axis=0).sum())) / spread_f
+        if moves_z < QUIET and moves_f > 3 * QUIET:
+            return (f"the latent stops moving after {q * n // 4 * dt:.3g} s while the frames still change: "
+                    "it follows only a start-up transient")
+    return None
+
+
+def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[str, float],
+          findings: list[Finding], analysis=None, calibrated: Iterable[str] = ()) -> dict[str, Verdict]:
+    """The verdict per constant. runs: RunRecords with .index, .status, .final, .loss, .score,
+    .converged; analysis: the equation's IdentifiabilityReport (None: not judged on it)."""
+    calibrated = set(calibrated)
+    by_index = {r.index: r for r in runs}
+    sel = [by_index[i] for i in selected]
+    scores = [r.score for r in sel if r.score is not None and math.isfinite(r.score)]
+    best_score = max(scores) if scores else None
+    out = {}
+    for name in names:
+        value = estimates[name]
+        found: list[Finding] = list(findings)
+        if analysis is not None:
+            c = analysis[name]
+            if not c.separable:
+                what = f"only {c.combination}" if c.combination else "no value for it alone"
+                found.append(Finding("not trustworthy", f"the equation lets a video measure {what}"))
+            elif c.scale == "dependent" and name not in calibrated:
+                found.append(Finding("not trustworthy", "its value depends on the latent's arbitrary units; "
+                                     "give --calibrate with known values of the state"))
+        vals = [r.final[name] for r in sel if name in r.final]
+        if len(vals) > 1 and np.std(vals) > AGREE_TOL * max(abs(value), 1e-12):
+            found.append(Finding("ambiguous", "the selected restarts disagree: "
+                                 + ", ".join(f"{v:.4g}" for v in vals)))
+        rivals = [r for r in runs if r.index not in selected and r.status == "ok" and name in r.final
+                  and best_score is not None and r.score is not None and r.score >= best_score - SCORE_MARGIN
+                  and abs(r.final[name] - value) > AGREE_TOL * max(abs(value), 1e-12)]
+        if rivals:
+            found.append(Finding("ambiguous", "restarts that tell the frames apart as well ended elsewhere: "
+                                 + "; ".join(f"run {r.index + 1} at {r.final[name]:.4g} (score {r.score:.2f}, "
+                                             f"loss {r.loss:.3g})" for r in rivals)))
+        if sel and not any(r.converged for r in sel):
+            found.append(Finding("ambiguous", "no selected restart settled before the step limit"))
+        worst = max(found, key=lambda f: LEVELS.index(f.level)) if found else None
+        if worst is None:
+            agree = f"{len(sel)} restart{'s' if len(sel) != 1 else ''} agree" if len(sel) > 1 else "one restart"
+            shown = f"{best_score:.2f}" if best_score is not None else "n/a"
+            out[name] = Verdict("trusted", f"{agree}; the latent tells the frames apart (score {shown})")
+        else:
+            out[name] = Verdict(worst.level, worst.reason)
+    return out
+
+
+def rejudge(result, analysis=None, calibrated: Iterable[str] = (), extra: Iterable[Finding] = ()) -> dict[str, Verdict]:
+    """The verdicts of a FitResult again, after calibration (which can make a unit-dependent
+    constant physical, or show a calibrated value outside the equation's bounds)."""
+    findings = [Finding(f["level"], f["reason"]) for f in result.checks.get("findings", [])] + list(extra)
+    return judge(list(result.parameters), result.runs, result.selected, result.values, findings,
+                 analysis=analysis, calibrated=calibrated)
