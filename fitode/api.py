@@ -1,6 +1,7 @@
 """`fitode.fit`: the public API on arrays of frames."""
 from __future__ import annotations
 
+import math
 from typing import Iterable, Mapping
 
 import numpy as np
@@ -36,7 +37,7 @@ def fit(frames, dt: float, *, eq: str | None = None, system: str | OdeSystem | N
     if params is not None:
         spec_params = {**spec_params, **params}
     config = checked_config(ode, options, prior=prior, default_prior=spec_prior, init=init,
-                            train_fraction=train_fraction)
+                            train_fraction=train_fraction, params=spec_params)
     if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not (dt > 0 and np.isfinite(dt)):
         raise ConfigError(f"dt must be a positive number of seconds, got {dt!r}")
     x = as_frames(frames)
@@ -46,7 +47,8 @@ def fit(frames, dt: float, *, eq: str | None = None, system: str | OdeSystem | N
 
 
 def checked_config(ode: OdeSystem, options: Mapping, *, prior=None, default_prior=(0.0, 1.0),
-                   init: Mapping[str, float] | None = None, train_fraction: float = 1.0) -> TrainConfig:
+                   init: Mapping[str, float] | None = None, train_fraction: float = 1.0,
+                   params: Mapping[str, ParamSpec] | None = None) -> TrainConfig:
     """Every check of a fit request that needs no frames, in one place (the API, the pipeline and
     batch all come through here): the training options, the prior, init's names, train_fraction."""
     if "prior" in options:
@@ -58,6 +60,13 @@ def checked_config(ode: OdeSystem, options: Mapping, *, prior=None, default_prio
     if unknown:
         raise ConfigError(f"init names {', '.join(unknown)}, which is not a learnable constant "
                           f"(learnable: {', '.join(ode.learnable)})")
+    for name, v in (init or {}).items():
+        spec = params.get(name) if params else None
+        lo, hi = (spec.min, spec.max) if spec is not None else (None, None)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+                or (lo is not None and not v > lo) or (hi is not None and not v < hi):
+            raise ConfigError(f"init {name}={v!r} must be a number strictly inside its bounds "
+                              f"({'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'})")
     if isinstance(train_fraction, bool) or not isinstance(train_fraction, (int, float)) or not 0 < train_fraction <= 1:
         raise ConfigError(f"train_fraction must be in (0, 1], got {train_fraction!r}")
     if config.device.startswith("cuda") and not torch.cuda.is_available():

@@ -66,7 +66,7 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
     ode, spec = _resolve_equation(eq, eq_file, system, const, free)
     spec_prior = (spec.prior_mean, spec.prior_std) if spec is not None else (0.0, 1.0)
     config = checked_config(ode, train_options, prior=prior, default_prior=spec_prior, init=init,
-                            train_fraction=train_fraction)
+                            train_fraction=train_fraction, params=spec.parameters if spec is not None else None)
     use_prior = config.prior
     points = None
     if calibrate is not None:

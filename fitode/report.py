@@ -210,7 +210,7 @@ def complete_report(report: dict[str, Any], result, analysis, calibration, t0: f
             item = analysis["constants"].get(name, {})
             comb = item.get("combination")
             entry["warnings"].append("not measurable alone" + (f": the video fixes only {comb}" if comb else ""))
-        if scale_of(analysis, name) == "free-small-amplitude" and not entry["calibrated"]:
+        if scale_of(analysis, name) == "free-small-amplitude" and not entry["calibrated"] and not _gauge_scaled(result):
             entry["warnings"].append("scale-free only for small amplitudes: with large swings the latent's "
                                      "arbitrary scale biases it; calibrate the state to be sure")
         if est.n_runs > 1 and abs(std) > SPREAD_WARN * abs(value):
@@ -258,6 +258,13 @@ def complete_report(report: dict[str, Any], result, analysis, calibration, t0: f
     report["warnings"] = warnings + report.get("warnings", [])
     report["status"] = "complete"
     report.pop("error", None)
+
+
+def _gauge_scaled(result) -> bool:
+    """True when the best run learned the scale between latent and state (fitode.eqparse.gauge),
+    so a large swing no longer biases an amplitude-dependent constant."""
+    gauge = result.runs[result.best].gauge if result.runs else {}
+    return any(abs(g.get("scale", 1.0) - 1.0) > 1e-9 for g in gauge.values())
 
 
 def _verdict(result, name: str) -> dict[str, str]:

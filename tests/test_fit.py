@@ -8,7 +8,7 @@ import fitode
 from fitode import synth
 from fitode.train.result import FitResult
 from fitode.eqparse import parse
-from fitode.train.trainer import TrainingError, restart_inits
+from fitode.errors import TrainingError
 
 G0, G1 = 4.0016, 0.08
 
@@ -64,17 +64,16 @@ def test_result_round_trips_through_json_and_extrapolates(oscillator_fit, tmp_pa
 
 
 def test_a_restart_that_turns_nan_is_reported_failed_and_left_out():
-    # sqrt(c) is NaN for negative c: restart 0 starts at c = 1, restart 1 from a seeded draw in
-    # [-10, 10]; pick a seed whose draw is negative so that restart fails
+    # sqrt(c) is NaN for negative c: restart 0 starts at the user's c = -1 and fails at its first
+    # step; restart 1 starts from the data search and goes on untouched in the same batch
     frames = synth.paper_video("intensity", size=16, n_frames=60).frames
     eq = "I' = -gamma*I + 1e-6*sqrt(c)"
-    system = parse(eq)
-    seed = next(s for s in range(100) if restart_inits(system, {}, 2, s)[1]["c"] < 0)
-    res = fitode.fit(frames, 0.2, eq=eq, restarts=2, max_steps=30, seed=seed, progress=False)
-    ok, bad = res.runs
+    res = fitode.fit(frames, 0.2, eq=eq, restarts=2, max_steps=30, init={"c": -1.0}, progress=False)
+    bad, ok = res.runs
     assert ok.status == "ok" and bad.status == "failed"
-    assert "sqrt(c)" in bad.error
-    assert res.selected == [0] and res.failed == [1]
+    assert "sqrt(c)" in bad.error and bad.stop_reason == "non-finite"
+    assert ok.steps == 30 and len(ok.history) == 30
+    assert res.selected == [1] and res.failed == [0]
     assert math.isfinite(res.values["gamma"])
     with pytest.raises(TrainingError, match="every run failed"):
-        fitode.fit(frames, 0.2, eq=eq, restarts=2, max_steps=30, init={"c": -1.0}, progress=False)
+        fitode.fit(frames, 0.2, eq=eq, restarts=1, max_steps=30, init={"c": -1.0}, progress=False)

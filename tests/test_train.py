@@ -91,7 +91,9 @@ def test_restart_inits_spread_and_bounds():
     assert all(-10 <= r["g0"] <= 10 for r in inits)
     assert all(r["g1"] > 0 for r in inits)
     assert len({r["g0"] for r in inits}) == 7
-    assert all(r["g0"] == 2.5 for r in restart_inits(system, params, 4, seed=1, fixed_init={"g0": 2.5}))
+    # the user's start is one candidate (run 0), not every run's
+    user = restart_inits(system, params, 4, seed=1, fixed_init={"g0": 2.5})
+    assert user[0] == {"g0": 2.5, "g1": 0.5} and all(r["g0"] != 2.5 for r in user[1:])
 
 
 def test_select_runs_excludes_failed_and_high_loss():

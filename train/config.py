@@ -35,7 +35,9 @@ class TrainConfig:
     horizon_warmup: steps over which the rollout grows to the whole window. selection_factor:
     runs whose loss is within this factor of the best are candidates for the estimate.
     restarts: independent restarts, trained together as one batched model. seed: all randomness.
-    device: cpu or cuda. threads: torch intra-op threads for the fit (None: torch's default).
+    device: cpu or cuda. threads: torch intra-op threads for the fit (None: torch's default; 1 by
+    default, because these small models gain little from threads and lose much when the machine
+    is busy: 2 threads were 11x slower than 1 under load).
     check_every: steps between checks that the loss and constants are finite (each check is a
     host synchronisation).
     """
@@ -61,7 +63,7 @@ class TrainConfig:
     restarts: int = 4
     seed: int = 0
     device: str = "cpu"
-    threads: int | None = None
+    threads: int | None = 1
     check_every: int = 10
 
     def __post_init__(self) -> None:

@@ -73,7 +73,7 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
     nc, first = block.n_context, block.anchor + 1  # first: the first frame that is a prediction
     if config.window <= nc:
         raise TrainingError(f"window of {config.window} frames is too short for an equation that needs {nc} to start")
-    block.set_constants({n: [row[n] for row in inits] for n in system.learnable})
+    block.set_constants({n: [row[n] for row in inits] for n in system.learnable}, clip=True)
     block = block.to(device)
     encoder = observation.encoder(config.encoder, tuple(frames.shape[1:]), system.dim, seeds,
                                   output_mean=config.prior[0]).to(device)

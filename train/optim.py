@@ -19,7 +19,7 @@ class BatchedAdam:
         self.restarts = restarts
         self.betas = betas
         self.eps = eps
-        ref = groups[0]["params"][0]
+        ref = next(p for g in groups for p in g["params"])
         self.lr_mult = torch.ones(restarts, dtype=ref.dtype, device=ref.device)
         self.steps = torch.zeros(restarts, dtype=ref.dtype, device=ref.device)
         self.state = {id(p): (torch.zeros_like(p), torch.zeros_like(p)) for g in groups for p in g["params"]}

@@ -39,6 +39,7 @@ class RunRecord:
     stop_reason: str = ""  # "converged" | "max_steps" | "non-finite" | "interrupted"
     gauge: dict[str, dict[str, float]] = field(default_factory=dict)  # state -> {"scale", "offset"}
     score: float | None = None  # does its latent tell the frames apart (fitode.train.score); None: not scored
+    origin: str = ""  # where its start came from: "user", "equation file", "data" or "spread"
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "RunRecord":

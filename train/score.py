@@ -16,22 +16,8 @@ monotone state is injective, so it scores as well as the truth.
 from __future__ import annotations
 
 import numpy as np
-import torch
 
-N_COMPONENTS = 8
 NEIGHBOURS = 5
-
-
-def principal_components(frames: torch.Tensor, k: int = N_COMPONENTS) -> np.ndarray:
-    """(T, k) coefficients of the frames (T, ...) on their k leading principal components."""
-    x = frames.reshape(frames.shape[0], -1).double()
-    x = x - x.mean(dim=0, keepdim=True)
-    # the T x T Gram matrix is small where the pixel count is not
-    gram = x @ x.T
-    evals, evecs = torch.linalg.eigh(gram)
-    order = torch.argsort(evals, descending=True)[:k]
-    scores = evecs[:, order] * evals[order].clamp_min(0).sqrt()
-    return scores.cpu().numpy()
 
 
 def separation_score(latent: np.ndarray, coefs: np.ndarray, exclude: int, neighbours: int = NEIGHBOURS) -> float:

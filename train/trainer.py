@@ -21,10 +21,12 @@ from .config import TrainConfig
 from .loop import Callback, StepInfo, Trained, train_restarts
 from .observe import ObservationModel, observation_model
 from .result import Estimate, FitResult
-from .score import principal_components, separation_score
+from .score import separation_score
 from .selection import select_runs
+from .starts import CANDIDATES, data_starts
 from .verdict import judge, video_checks
 
+DATA_STARTS = 2  # restarts that start from the data search (fitode.train.starts), when there are enough
 SCORE_EXCLUDE = 2  # frames either side left out of the score's neighbours (see fitode.train.score)
 
 __all__ = ["Callback", "StepInfo", "TrainConfig", "fit_frames", "restart_inits", "select_runs"]
@@ -34,10 +36,10 @@ def restart_inits(system: OdeSystem, params: Mapping[str, ParamSpec], n: int, se
                   fixed_init: Mapping[str, float] | None = None) -> list[dict[str, float]]:
     """Initial constants for n restarts, spread as in the paper.
 
-    Run 0 starts from the equation file's init (else the default of fitode.codegen.constants);
-    the others from seeded draws: uniform in [-10, 10] for an unbounded constant, log-uniform
-    over three decades around the init for a one-sided bound, uniform inside two bounds. A value
-    in fixed_init is used by every run.
+    Run 0 starts from the user's value (fixed_init), else the equation file's init, else the
+    default of fitode.codegen.constants; the others from seeded draws: uniform in [-10, 10] for an
+    unbounded constant, log-uniform over three decades around the init for a one-sided bound,
+    uniform inside two bounds. (fit_frames replaces some of the draws by starts from the data.)
     """
     rng = np.random.default_rng(seed)
     inits: list[dict[str, float]] = []
@@ -46,10 +48,8 @@ def restart_inits(system: OdeSystem, params: Mapping[str, ParamSpec], n: int, se
         for name in system.learnable:
             spec = params.get(name, ParamSpec())
             rep, base = reparam_for(name, spec)
-            if fixed_init and name in fixed_init:
-                row[name] = float(fixed_init[name])
-            elif i == 0:
-                row[name] = float(base)
+            if i == 0:
+                row[name] = float(fixed_init[name]) if fixed_init and name in fixed_init else float(base)
             elif rep.lo is not None and rep.hi is not None:
                 row[name] = float(rng.uniform(rep.lo, rep.hi))
             elif rep.lo is not None or rep.hi is not None:
@@ -70,21 +70,31 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
     """Every restart on raw float frames (T, C, H, W); training uses the first train_frames."""
     observation = observation_model(observe)
     device = torch.device(config.device)
-    frames = observation.prepare(frames.to(device))
     n_total = frames.shape[0]
     n_train = n_total if train_frames is None else int(train_frames)
     if n_train < config.window + 1:
         raise TrainingError(f"{n_train} training frames are fewer than one window of {config.window} plus one; "
                             "use a longer clip, a smaller --stride or a shorter window")
+    prepared = observation.prepare(frames.to(device), config.encoder, fit_frames=n_train)
+    frames = prepared.inputs
     inits = restart_inits(system, params, config.restarts, config.seed, init)
+    origins = ["user" if init else "equation file"] + ["spread"] * (len(inits) - 1)
     seeds = [config.seed * 1000 + i for i in range(len(inits))]
     plan = gauge_plan(system)
     with _threads(config.threads):
+        n_data = min(DATA_STARTS, len(inits) - 1)
+        if n_data:
+            candidates = restart_inits(system, params, CANDIDATES, config.seed + 1, None)[1:] + inits[:1]
+            found = data_starts(prepared.components[:n_train], dt, system, params, config, plan, candidates, n_data)
+            for i, start in enumerate(found, start=1):
+                inits[i], origins[i] = start, "data"
         trained = train_restarts(frames[:n_train], dt, system, params, config, inits, seeds=seeds,
                                  observation=observation, plan=plan, callback=callback, progress=progress)
         latents, rollouts = _trajectories(trained, frames, dt)
     records = trained.records
-    coefs = principal_components(frames[:n_train])
+    for rec, origin in zip(records, origins):
+        rec.origin = origin
+    coefs = prepared.components[:n_train]
     for r in records:
         if r.status != "failed":
             r.score = separation_score(latents[r.index, :n_train], coefs, exclude=SCORE_EXCLUDE)
@@ -113,6 +123,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         states=list(system.states), equation=system.text, fixed=dict(system.fixed),
         settings=config.as_dict(), selection_factor=config.selection_factor,
         meta={**(meta or {}), "interrupted": interrupted, "observation": observation.name,
+              "subspace": prepared.note, "rank": prepared.rank,
               "gauge": {s: g.describe() for s, g in plan.items()}},
         verdicts={n: v.to_dict() for n, v in verdicts.items()},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},

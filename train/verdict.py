@@ -28,6 +28,8 @@ LEVELS = ("trusted", "ambiguous", "not trustworthy")
 SCORE_MIN = 0.5  # right latents scored 0.78-0.995 on every motion case tried, wrong ones -0.5 to 0.45
 PERIOD_TOL = 0.1
 AGREE_TOL = 0.05
+SETTLED = 0.005  # a constant that moved less than this (relative) over the last MOTION_STEPS steps has settled
+MOTION_STEPS = 200
 QUIET = 0.1  # a quarter of the clip where the latent moves less than this fraction of its spread
 
 
@@ -98,6 +100,15 @@ def _quiet_quarter(latent: np.ndarray, coefs: np.ndarray, dt: float) -> str | No
     return None
 
 
+def _motion(run, name: str) -> float | None:
+    """Relative change of a constant over the last MOTION_STEPS steps of a run's history."""
+    series = run.history.constants.get(name, []) if hasattr(run.history, "constants") else []
+    if len(series) <= MOTION_STEPS:
+        return None
+    now, then = series[-1], series[-1 - MOTION_STEPS]
+    return abs(now - then) / max(abs(now), 1e-12)
+
+
 def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[str, float],
           findings: list[Finding], analysis=None, calibrated: Iterable[str] = ()) -> dict[str, Verdict]:
     """The verdict per constant. runs: RunRecords with .index, .status, .final, .loss, .score,
@@ -130,8 +141,10 @@ def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[st
             found.append(Finding("ambiguous", "restarts that tell the frames apart as well ended elsewhere: "
                                  + "; ".join(f"run {r.index + 1} at {r.final[name]:.4g} (score {r.score:.2f}, "
                                              f"loss {r.loss:.3g})" for r in rivals)))
-        if sel and not any(r.converged for r in sel):
-            found.append(Finding("ambiguous", "no selected restart settled before the step limit"))
+        moving = [m for m in (_motion(r, name) for r in sel if not r.converged) if m is not None]
+        if moving and min(moving) > SETTLED:
+            found.append(Finding("ambiguous", f"still moving at the step limit ({100 * min(moving):.2g}% over the "
+                                 f"last {MOTION_STEPS} steps); raise --max-steps"))
         worst = max(found, key=lambda f: LEVELS.index(f.level)) if found else None
         if worst is None:
             agree = f"{len(sel)} restart{'s' if len(sel) != 1 else ''} agree" if len(sel) > 1 else "one restart"
