@@ -108,7 +108,7 @@ def test_interrupt_before_any_estimate_keeps_the_history(video, tmp_path):
 
 def test_every_run_failing_leaves_a_failed_folder(video, tmp_path):
     with pytest.raises(FitodeError, match="every run failed"):
-        run_video(video, tmp_path / "f", eq="I' = gamma*I^3", init={"gamma": 1e6}, log=None, **TINY)
+        run_video(video, tmp_path / "f", eq="I' = gamma*I^3", init={"gamma": 1e6}, log=None, **{**TINY, "restarts": 1})
     report = json.loads((tmp_path / "f" / "result.json").read_text())
     assert report["status"] == "failed" and "every run failed" in report["error"]
     assert report["parameters"] == {}

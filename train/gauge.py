@@ -14,6 +14,7 @@ from torch import nn
 from fitode.eqparse.gauge import StateGauge
 
 SCALE_START = 0.2  # a learned scale starts small: a pendulum's small swing, where sin(x) ~ x
+LR_FACTOR = 0.2  # of the constants' lr: at 0.05 per step the offset ran out of sqrt's domain in 30 steps
 
 
 class Gauge(nn.Module):
@@ -29,6 +30,8 @@ class Gauge(nn.Module):
         b0 = [s0[i] * (3 * std + max(0.0, -mean)) if (learn_b[i] and plan[st].positive) else 0.0
               for i, st in enumerate(self.states)]
         d = len(self.states)
+        self.unit = float(std)  # the offset is learned in units of the latent's spread
+        b0 = [v / self.unit for v in b0]
         self.register_buffer("learn_scale", torch.tensor(learn_s, dtype=torch.bool))
         self.register_buffer("learn_offset", torch.tensor(learn_b, dtype=torch.bool))
         self.log_scale = nn.Parameter(torch.tensor([math.log(v) for v in s0], dtype=dtype).repeat(restarts, 1))
@@ -44,7 +47,7 @@ class Gauge(nn.Module):
     def scale_offset(self) -> tuple[torch.Tensor, torch.Tensor]:
         """(R, d) scale and offset; fixed entries are constants, not parameters."""
         s = torch.where(self.learn_scale, self.log_scale, self.log_scale0).exp()
-        b = torch.where(self.learn_offset, self.offset, self.offset0)
+        b = torch.where(self.learn_offset, self.offset, self.offset0) * self.unit
         return s, b
 
     def to_state(self, z: torch.Tensor) -> torch.Tensor:

@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Mapping, Sequence
 
+import numpy as np
 import torch
 
 from fitode.codegen import PhysicsBlock
@@ -23,7 +24,7 @@ from fitode.eqparse.gauge import StateGauge
 from fitode.errors import FitodeError, TrainingError
 
 from .config import TrainConfig
-from .gauge import Gauge
+from .gauge import LR_FACTOR, Gauge
 from .history import History
 from .loss import restart_losses
 from .observe import ObservationModel
@@ -61,8 +62,10 @@ class Trained:
 def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mapping[str, ParamSpec],
                    config: TrainConfig, inits: Sequence[Mapping[str, float]], *, seeds: Sequence[int],
                    observation: ObservationModel, plan: Mapping[str, StateGauge],
-                   callback: Callback | None = None, progress: bool = False) -> Trained:
-    """Train len(inits) restarts on prepared frames (T, C, H, W) already on the target device."""
+                   callback: Callback | None = None, progress: bool = False,
+                   targets: Mapping[int, np.ndarray] | None = None) -> Trained:
+    """Train len(inits) restarts on prepared frames (T, C, H, W) already on the target device.
+    targets: {restart: (T,) latent} whose encoder first learns that latent (see distill)."""
     t0 = time.perf_counter()
     n_runs = len(inits)
     device = frames.device
@@ -78,13 +81,15 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
     encoder = observation.encoder(config.encoder, tuple(frames.shape[1:]), system.dim, seeds,
                                   output_mean=config.prior[0]).to(device)
     gauge = Gauge(plan, system.states, n_runs, config.prior, enabled=config.gauge).to(device)
+    if targets:
+        distill(encoder, frames, targets, config)
 
     groups = [{"params": list(encoder.parameters()), "lr": config.lr, "name": "encoder"}]
     for g in block.param_groups(lr=config.const_lr):
         # per-window initial derivatives move with the encoder's latents, not at a constant's pace
         lr = config.lr * 10 if g["kind"] == "initial_state" else g["lr"]
         groups.append({"params": g["params"], "lr": lr, "name": g["name"]})
-    groups.append({"params": [gauge.log_scale, gauge.offset], "lr": config.const_lr, "name": "gauge"})
+    groups.append({"params": [gauge.log_scale, gauge.offset], "lr": config.const_lr * LR_FACTOR, "name": "gauge"})
     opt = BatchedAdam(groups, n_runs)
 
     names = list(system.learnable)
@@ -167,6 +172,31 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
         rec.wall_s = time.perf_counter() - t0
         rec.gauge = gauge.values(r)
     return Trained(records, encoder, block, gauge)
+
+
+DISTILL_STEPS = 300
+
+
+def distill(encoder, frames: torch.Tensor, targets: Mapping[int, np.ndarray], config: TrainConfig) -> None:
+    """Teach the encoders of some restarts a given latent (standardised to the prior) before the
+    joint training: a start from the data carries the readout of the frames it was fitted to."""
+    n_runs = encoder.restarts
+    mean, std = config.prior
+    target = torch.zeros(n_runs, frames.shape[0], 1, device=frames.device)
+    active = torch.zeros(n_runs, dtype=torch.bool, device=frames.device)
+    for r, z in targets.items():
+        z = np.asarray(z, dtype=float)
+        z = mean + std * (z - z.mean()) / (z.std() or 1.0)
+        target[r, : len(z), 0] = torch.as_tensor(z[: frames.shape[0]], dtype=target.dtype)
+        active[r] = True
+    n = min(frames.shape[0], min(len(z) for z in targets.values()))
+    opt = BatchedAdam([{"params": list(encoder.parameters()), "lr": config.lr * 10, "name": "encoder"}], n_runs)
+    for _ in range(DISTILL_STEPS):
+        z = encoder(frames[:n])[..., :1]
+        loss = (z - target[:, :n]).pow(2).mean(dim=(1, 2))
+        opt.zero_grad()
+        torch.where(active, loss, torch.zeros_like(loss)).sum().backward()
+        opt.step(active)
 
 
 def _flush(buffer: list[tuple], records: list[RunRecord], names: list[str], callback: Callback | None) -> None:

@@ -8,10 +8,12 @@ subspace. fitode.fit accepts a name or an instance, as PySINDy's estimator accep
 
 The signal subspace. An encoder with more free weights than frames can draw any curve out of
 pixel noise (a linear encoder on 64x85 frames of a dimming lamp gave a decay rate of the wrong
-sign). The frames are projected on their leading principal components first: those whose
-singular value stands above the noise floor (SUBSPACE_GAP times the median singular value of
-the second quarter of the spectrum, where only noise and the tail of the motion live), at most
-SUBSPACE_CAP (a moving object spans many components). An mlp or linear encoder then reads the
+sign). The frames are projected on their leading principal components first. Where the
+singular values drop by a clear gap (one ratio of neighbours above SUBSPACE_JUMP: a lamp that
+dims is one component, then video noise), the components above the gap are kept. Otherwise
+(a moving object spreads over many components with no gap) those above the noise floor:
+SUBSPACE_GAP times the median singular value of the second quarter of the spectrum, where only
+noise and the tail of the motion live; at most SUBSPACE_CAP. An mlp or linear encoder then reads the
 k coefficients, which is the same function class as reading the projected frames (its first
 layer absorbs the projection) at a fraction of the cost; a cnn reads the projected frames.
 """
@@ -27,6 +29,7 @@ from fitode.errors import ConfigError
 from .encoders import BatchedEncoder, normalise_frames
 
 SUBSPACE_GAP = 3.0
+SUBSPACE_JUMP = 3.0
 SUBSPACE_CAP = 32
 SCORE_COMPONENTS = 8
 
@@ -64,7 +67,11 @@ class ObservationModel:
         k_max = int((sv > 1e-9 * sv[0]).sum()) if sv[0] > 0 else 0
         floor = float(sv[len(sv) // 4: max(len(sv) // 2, len(sv) // 4 + 1)].median()) if len(sv) >= 8 else 0.0
         above = int((sv > SUBSPACE_GAP * floor).sum()) if floor > 0 else k_max
-        rank = max(1, min(above, SUBSPACE_CAP, k_max)) if k_max else 1
+        head = sv[: min(SUBSPACE_CAP, k_max) + 1]
+        jumps = (head[:-1] / head[1:].clamp_min(1e-300)) if len(head) > 1 else head[:0]
+        jump = int(torch.argmax(jumps)) if len(jumps) else -1
+        gapped = jump >= 0 and float(jumps[jump]) > SUBSPACE_JUMP
+        rank = (jump + 1) if gapped else max(1, min(above, SUBSPACE_CAP, k_max)) if k_max else 1
         # pixel directions of the leading components: V = X^T U / s
         keep = order[: max(rank, SCORE_COMPONENTS)]
         u = evecs[:, keep]
@@ -74,10 +81,15 @@ class ObservationModel:
         components = coefs[:, :SCORE_COMPONENTS].cpu().numpy()
         if not self.subspace:
             return Prepared(x, components, k_max, "the encoder reads every pixel (no signal subspace)")
-        ratio = f"{float(sv[rank - 1] / floor):.1f}x" if floor > 0 else "n/a"
-        note = (f"signal subspace: {rank} principal component{'s' if rank != 1 else ''} of the frames "
-                + (f"(capped at {SUBSPACE_CAP}; " if above > SUBSPACE_CAP else "(")
-                + f"the last kept stands {ratio} above the noise floor)")
+        plural = "s" if rank != 1 else ""
+        if gapped:
+            note = (f"signal subspace: {rank} principal component{plural} of the frames (the singular values "
+                    f"drop {_times(float(jumps[jump]))} after the {rank}{_th(rank)})")
+        else:
+            ratio = f"{float(sv[rank - 1] / floor):.1f}x" if floor > 0 else "n/a"
+            note = (f"signal subspace: {rank} principal component{plural} of the frames "
+                    + (f"(capped at {SUBSPACE_CAP}; " if above > SUBSPACE_CAP else "(")
+                    + f"the last kept stands {ratio} above the noise floor)")
         head = coefs[:, :rank]
         if architecture == "cnn":
             inputs = (head @ basis[:, :rank].T + mean).reshape(x.shape).to(x.dtype)
@@ -92,6 +104,14 @@ class ObservationModel:
     def regulariser(self, z: torch.Tensor) -> torch.Tensor | None:
         """An extra loss term per restart, (R,), from the latents z (R, N, d); None for none."""
         return None
+
+
+def _times(ratio: float) -> str:
+    return "over 1000x" if ratio > 1000 else f"{ratio:.0f}x"
+
+
+def _th(k: int) -> str:
+    return {1: "st", 2: "nd", 3: "rd"}.get(k if k < 20 else k % 10, "th")
 
 
 OBSERVATIONS = {"any": ObservationModel}

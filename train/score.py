@@ -60,5 +60,10 @@ def dominant_period(series: np.ndarray, dt: float) -> float | None:
     ok = freqs > lo
     if not ok.any() or power[ok].max() <= 0:
         return None
-    f = freqs[ok][np.argmax(power[ok])]
-    return float(1.0 / f)
+    band = power[ok]
+    k = int(np.argmax(band))
+    # a monotone drift leaks power into the lowest frequencies: only a peak that rises well above
+    # the low edge of the band is an oscillation
+    if k == 0 or band[k] < 2 * band[0]:
+        return None
+    return float(1.0 / freqs[ok][k])

@@ -1,16 +1,24 @@
 """Starts from the data: constants that already fit what the frames do, whatever the user guessed.
 
 The paper claims robustness to starts in [-10, 10], but from 3 of 7 such starts its trainer ends
-in a wrong basin. Before the real restarts, a cheap search fits the equation to the frames'
-own leading principal components, taken as a frozen latent (no encoder to learn, so hundreds of
-steps cost little): for each of the first few components, a batch of candidates spread like the
-restarts is trained on the constants and the gauge alone. The best distinct ends become the
-starts of restarts 1, 2, ...; restart 0 keeps the user's (or the equation file's) start.
+in a wrong basin. Before the real restarts, a cheap search fits the equation to frozen latents
+taken from the frames themselves (no encoder to learn, so hundreds of steps cost little): first
+the readout of the frames that oscillates at the period with which the frames repeat, when they
+do (on real pendulums the leading principal components also carry the swing's second harmonic,
+whose fit is the harmonic trap at L/4), then the leading principal components. For each, a
+batch of candidates spread like the restarts is trained on the constants and the gauge alone,
+and its best end is one start, in that order. They become the starts of restarts 1, 2, ...;
+restart 0 keeps the user's (or the equation file's) start.
+
+Right constants are not enough: measured on the real pendulum clips, restarts that started at
+the right L with a random encoder were dragged into the harmonic trap by the encoder. So a start
+carries its frozen latent too, and the restart's encoder first learns to reproduce it
+(fitode.train.loop.distill) before the joint training begins.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Mapping
 
 import numpy as np
@@ -29,6 +37,22 @@ COMPONENTS = 3  # principal components tried as the latent
 CANDIDATES = 16  # starts trained on each
 STEPS = 300
 DISTINCT = 0.05  # two ends closer than this (relative, every constant) are one start
+
+
+@dataclass
+class DataStart:
+    constants: dict[str, float]
+    latent: np.ndarray  # (T,) the readout of the frames the restart's encoder starts from
+
+
+def oscillation_readout(components: np.ndarray, dt: float, period: float) -> np.ndarray:
+    """The linear readout of the components that oscillates most at `period`: the direction of
+    the components' sin and cos projections (their leading singular vector)."""
+    x = components - components.mean(axis=0)
+    t = np.arange(len(x)) * dt
+    m = np.stack([x.T @ np.sin(2 * np.pi * t / period), x.T @ np.cos(2 * np.pi * t / period)], axis=1)
+    u, _, _ = np.linalg.svd(m, full_matrices=False)
+    return x @ u[:, 0]
 
 
 class _Frozen(nn.Module):
@@ -52,18 +76,20 @@ class _FrozenLatent(ObservationModel):
 
 def data_starts(components: np.ndarray, dt: float, system: OdeSystem, params: Mapping[str, ParamSpec],
                 config: TrainConfig, plan: Mapping[str, StateGauge], candidates: list[dict[str, float]],
-                n: int) -> list[dict[str, float]]:
-    """Up to n starts found by fitting the equation to each leading component as a frozen latent.
-    candidates: the constants each search starts from (spread as the restarts are)."""
-    if n <= 0 or system.dim != 1 or components.shape[1] == 0:
+                n: int, period: float | None = None) -> list[DataStart]:
+    """Up to n starts, one per frozen latent: the readout oscillating at `period` (the frames' own,
+    if they repeat), then each leading principal component. candidates: the constants each
+    search starts from (spread as the restarts are)."""
+    if n <= 0 or system.dim != 1:
         return []  # one component is one state: a system of several states has no such shortcut
     cfg = replace(config, restarts=len(candidates), max_steps=STEPS, min_steps=min(config.min_steps, STEPS // 3),
                   horizon_warmup=min(config.horizon_warmup, STEPS // 3), batch_windows=None)
+    latents = [oscillation_readout(components, dt, period)] if period else []
+    latents += [components[:, j] for j in range(min(COMPONENTS, components.shape[1]))]
     mean, std = config.prior
-    ends: list[tuple[float, dict[str, float]]] = []
-    for j in range(min(COMPONENTS, components.shape[1])):
-        c = components[:, j]
-        if not np.std(c) > 0:
+    starts: list[DataStart] = []
+    for c in latents:
+        if not np.std(c) > 0 or len(starts) == n:
             continue
         z = torch.as_tensor(mean + std * (c - c.mean()) / c.std(), dtype=torch.float32).reshape(-1, 1, 1, 1)
         try:
@@ -71,14 +97,11 @@ def data_starts(components: np.ndarray, dt: float, system: OdeSystem, params: Ma
                                      observation=_FrozenLatent(), plan=plan)
         except FitodeError:
             continue
-        for rec in trained.records:
-            if rec.status == "ok" and math.isfinite(rec.loss) and rec.final:
-                ends.append((rec.loss, dict(rec.final)))
-    ends.sort(key=lambda e: e[0])
-    starts: list[dict[str, float]] = []
-    for _, final in ends:
-        if all(any(abs(final[k] - s[k]) > DISTINCT * max(abs(s[k]), 1e-9) for k in final) for s in starts):
-            starts.append(final)
-        if len(starts) == n:
-            break
+        ends = [r for r in trained.records if r.status == "ok" and math.isfinite(r.loss) and r.final]
+        if not ends:
+            continue
+        final = min(ends, key=lambda r: r.loss).final
+        if all(any(abs(final[k] - s.constants[k]) > DISTINCT * max(abs(s.constants[k]), 1e-9) for k in final)
+               for s in starts):
+            starts.append(DataStart(dict(final), c))
     return starts

@@ -21,7 +21,7 @@ from .config import TrainConfig
 from .loop import Callback, StepInfo, Trained, train_restarts
 from .observe import ObservationModel, observation_model
 from .result import Estimate, FitResult
-from .score import separation_score
+from .score import dominant_period, separation_score
 from .selection import select_runs
 from .starts import CANDIDATES, data_starts
 from .verdict import judge, video_checks
@@ -81,15 +81,19 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
     origins = ["user" if init else "equation file"] + ["spread"] * (len(inits) - 1)
     seeds = [config.seed * 1000 + i for i in range(len(inits))]
     plan = gauge_plan(system)
+    targets: dict[int, np.ndarray] = {}
     with _threads(config.threads):
         n_data = min(DATA_STARTS, len(inits) - 1)
         if n_data:
             candidates = restart_inits(system, params, CANDIDATES, config.seed + 1, None)[1:] + inits[:1]
-            found = data_starts(prepared.components[:n_train], dt, system, params, config, plan, candidates, n_data)
+            comps = prepared.components[:n_train]
+            period = dominant_period(comps, dt) if system.max_order >= 2 else None
+            found = data_starts(comps, dt, system, params, config, plan, candidates, n_data, period=period)
             for i, start in enumerate(found, start=1):
-                inits[i], origins[i] = start, "data"
+                inits[i], origins[i], targets[i] = start.constants, "data", start.latent
         trained = train_restarts(frames[:n_train], dt, system, params, config, inits, seeds=seeds,
-                                 observation=observation, plan=plan, callback=callback, progress=progress)
+                                 observation=observation, plan=plan, callback=callback, progress=progress,
+                                 targets=targets)
         latents, rollouts = _trajectories(trained, frames, dt)
     records = trained.records
     for rec, origin in zip(records, origins):
