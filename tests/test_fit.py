@@ -10,6 +10,8 @@ from fitode.train.result import FitResult
 from fitode.eqparse import parse
 from fitode.errors import TrainingError
 
+pytestmark = pytest.mark.slow  # end-to-end fits: `pytest -m 'not slow'` skips them
+
 G0, G1 = 4.0016, 0.08
 
 

@@ -68,6 +68,7 @@ def test_empty_out_dir_is_used(video, tmp_path):
     assert (target / "result.json").is_file() and out.out_dir == target
 
 
+@pytest.mark.slow
 def test_interrupt_leaves_an_incomplete_folder(video, tmp_path):
     def stop(info):
         if info.run == 1 and info.step == 4:
@@ -114,6 +115,7 @@ def test_every_run_failing_leaves_a_failed_folder(video, tmp_path):
     assert report["parameters"] == {}
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGINT semantics")
 def test_real_ctrl_c(video, tmp_path):
     """SIGINT to a running `fitode`: status 130, and the folder says incomplete."""

@@ -14,7 +14,7 @@ from torch import nn
 from fitode.eqparse.gauge import StateGauge
 
 SCALE_START = 0.2  # a learned scale starts small: a pendulum's small swing, where sin(x) ~ x
-LR_FACTOR = 0.2  # of the constants' lr: at 0.05 per step the offset ran out of sqrt's domain in 30 steps
+LR_FACTOR = 0.2  # the offset's share of the constants' lr: at 0.05 per step it left sqrt's domain in 30 steps
 
 
 class Gauge(nn.Module):
@@ -32,6 +32,8 @@ class Gauge(nn.Module):
         d = len(self.states)
         self.unit = float(std)  # the offset is learned in units of the latent's spread
         b0 = [v / self.unit for v in b0]
+        self.register_buffer("positive", torch.tensor([learn_b[i] and plan[st].positive
+                                                      for i, st in enumerate(self.states)], dtype=torch.bool))
         self.register_buffer("learn_scale", torch.tensor(learn_s, dtype=torch.bool))
         self.register_buffer("learn_offset", torch.tensor(learn_b, dtype=torch.bool))
         self.log_scale = nn.Parameter(torch.tensor([math.log(v) for v in s0], dtype=dtype).repeat(restarts, 1))
@@ -39,6 +41,19 @@ class Gauge(nn.Module):
         self.register_buffer("log_scale0", self.log_scale.detach().clone())
         self.register_buffer("offset0", self.offset.detach().clone())
         assert self.log_scale.shape == (restarts, d)
+
+    @torch.no_grad()
+    def enter_domain(self, z: torch.Tensor) -> None:
+        """Raise the offsets of states under sqrt/log until every frame's state is positive, for
+        the encoder's first latents z (R, T, d): the prior holds their spread only after training
+        has begun, and an untrained encoder's outputs spread wider."""
+        if not bool(self.positive.any()):
+            return
+        s, b = self.scale_offset()
+        low = (z * s[:, None, :]).amin(dim=1) + b  # (R, d) the lowest state of each restart
+        need = (b - low + 0.5 * self.unit * s) / self.unit  # half a prior spread above zero
+        raise_to = torch.where(self.positive & (low < 0.5 * self.unit * s), need, self.offset)
+        self.offset.copy_(torch.maximum(self.offset, raise_to))
 
     @property
     def learned(self) -> bool:

@@ -83,13 +83,16 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
     gauge = Gauge(plan, system.states, n_runs, config.prior, enabled=config.gauge).to(device)
     if targets:
         distill(encoder, frames, targets, config)
+    with torch.no_grad():
+        gauge.enter_domain(torch.cat([encoder(chunk) for chunk in frames.split(512)], dim=1))
 
     groups = [{"params": list(encoder.parameters()), "lr": config.lr, "name": "encoder"}]
     for g in block.param_groups(lr=config.const_lr):
         # per-window initial derivatives move with the encoder's latents, not at a constant's pace
         lr = config.lr * 10 if g["kind"] == "initial_state" else g["lr"]
         groups.append({"params": g["params"], "lr": lr, "name": g["name"]})
-    groups.append({"params": [gauge.log_scale, gauge.offset], "lr": config.const_lr * LR_FACTOR, "name": "gauge"})
+    groups.append({"params": [gauge.log_scale], "lr": config.const_lr, "name": "gauge scale"})
+    groups.append({"params": [gauge.offset], "lr": config.const_lr * LR_FACTOR, "name": "gauge offset"})
     opt = BatchedAdam(groups, n_runs)
 
     names = list(system.learnable)
