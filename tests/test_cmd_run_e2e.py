@@ -16,9 +16,9 @@ import pytest
 
 from fitode.cli import main
 from fitode.examples.make_example import (HERE, TRUTH, decay_values, pendulum_angles, render_glow, render_pendulum,
+                                          write_mp4)
 
 pytestmark = pytest.mark.slow  # end-to-end fits: `pytest -m 'not slow'` skips them
-                                          write_mp4)
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
