@@ -110,4 +110,15 @@ def report_lines(system, spec, report) -> list[str]:
         indent = "  " + line[: len(line) - len(stripped)]
         body.initial_indent = body.subsequent_indent = indent
         out += body.wrap(stripped)
+    out += gauge_lines(system)
     return out
+
+
+def gauge_lines(system) -> list[str]:
+    """How the equation's state relates to the latent (fitode.eqparse.gauge): what a fit learns."""
+    from fitode.eqparse.gauge import gauge_plan
+    try:
+        plan = gauge_plan(system)
+    except Exception:  # noqa: BLE001 - advice only: the symmetry test can fail on unusual equations
+        return ["gauge: could not be analysed; the state is taken as the latent"]
+    return ["gauge (the equation's state from the latent z):"] + [f"  {g.describe()}" for g in plan.values()]

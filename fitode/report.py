@@ -101,6 +101,9 @@ def understanding_lines(ode, spec, analysis, clip, n_train: int, settings: Mappi
     if (analysis or {}).get("lines"):
         lines.append("identifiability:")
         lines += [f"  {line}" for line in analysis["lines"]]
+    if settings.get("gauge", True):
+        from fitode.cmd_check import gauge_lines
+        lines += gauge_lines(ode)
     lines.append(f"training: {settings['restarts']} restarts, up to {settings['max_steps']} steps, window "
                  f"{settings['window']} frames, {settings['integrator']} integrator, {settings['encoder']} encoder, "
                  f"{settings['device']}, seed {settings['seed']}")
@@ -301,6 +304,8 @@ def run_lines(result) -> list[str]:
         score = f"score {r.score:5.2f}" if r.score is not None else "score   -  "
         lines.append(f"run {r.index + 1:>2}{mark} {r.steps:>5} steps  loss {r.loss:.4g}  {score}  "
                      f"{consts}  ({state})")
+    if result.meta.get("subspace"):
+        lines.insert(0, result.meta["subspace"])
     wall = max((r.wall_s for r in result.runs), default=0.0)
     lines.append(f"           (* best run, + also averaged into the estimate; {len(result.runs)} restarts "
                  f"trained together in {wall:.1f} s; score: does the latent tell the frames apart, 1 = fully)")
