@@ -26,6 +26,11 @@ Measured with --threads torch threads (default 2), each part in a fresh process:
 - peak memory: the peak RSS of a process that loads the frames and takes 5 steps, and its rise
   over the RSS before the first step.
 
+- restarts: ms per step of the real batched loop (fitode.train.loop, subspace and all) with 1, 4
+  and 16 restarts trained as one model, on cpu and, where torch sees one, cuda; the sizes
+  alternate, repetition by repetition, and the table gives the minimum over hand-overs of 5
+  steps; restart-steps per second = restarts / (s per step).
+
 Shared machines: other processes slow a 2-thread step far more than their share (the threads
 wait for each other), so the load average is printed beside the numbers; trust the minimum
 and the ratios more than the medians.
@@ -52,8 +57,10 @@ import common as bc  # noqa: E402
 EQUATION = "z'' + g1*z' + g0*z = 0"
 SIZES = {"50x50": (50, 50), "64x114": (64, 114)}
 MODES = ("per-frame", "per-window")
-FULL = {"n_frames": 270, "sizes": SIZES, "reps": 40, "max_steps": None}
-QUICK = {"n_frames": 40, "sizes": {"16x28": (16, 28)}, "reps": 3, "max_steps": 8}
+FULL = {"n_frames": 270, "sizes": SIZES, "reps": 40, "max_steps": None, "restarts": (1, 4, 16),
+        "restart_steps": 60, "rounds": 3}
+QUICK = {"n_frames": 40, "sizes": {"16x28": (16, 28)}, "reps": 3, "max_steps": 8, "restarts": (1, 2),
+         "restart_steps": 15, "rounds": 1}
 MEMORY_STEPS = 5
 
 
@@ -99,7 +106,7 @@ class Stepper:
         self.x = normalise_frames(as_frames(frames))
         system = parse(EQUATION)
         self.windows = Windows(self.x.shape[0], cfg.window)
-        self.encoder = make_encoder(cfg.encoder, tuple(self.x.shape[1:]), system.dim)
+        self.encoder = make_encoder("mlp", tuple(self.x.shape[1:]), system.dim)  # the paper's, as the official code
         self.block = PhysicsBlock(system, {}, integrator=cfg.integrator, substeps=cfg.substeps, initial_state=cfg.initial_state,
                                   n_windows=self.windows.count)
         self.first = getattr(self.block, "anchor", self.block.n_context - 1) + 1
@@ -203,6 +210,49 @@ def converge(task: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def time_restarts(task: dict[str, Any]) -> list[dict[str, Any]]:
+    """ms per step of the batched loop for each restart count (and device), interleaved."""
+    import torch
+
+    from fitode.api import as_frames
+    from fitode.eqparse import parse
+    from fitode.eqparse.gauge import gauge_plan
+    from fitode.train.config import TrainConfig
+    from fitode.train.loop import train_restarts
+    from fitode.train.observe import ObservationModel
+
+    frames, dt = frames_for(tuple(task["size"]), task["n_frames"])
+    system = parse(EQUATION)
+    plan = gauge_plan(system)
+    devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
+    best: dict[tuple[str, int], float] = {}
+    for _ in range(task["rounds"]):
+        for device in devices:
+            prepared = ObservationModel().prepare(as_frames(frames).to(device))
+            for n in task["restarts"]:
+                stamps: list[float] = []
+                cfg = TrainConfig(max_steps=task["steps"], min_steps=task["steps"], horizon_warmup=0,
+                                  check_every=5, restarts=n, encoder="mlp", device=device)
+                inits = [{"g0": 1.0 + 0.1 * i, "g1": 0.5} for i in range(n)]
+                train_restarts(prepared.inputs, dt, system, {}, cfg, inits, seeds=list(range(n)),
+                               observation=ObservationModel(), plan=plan,
+                               callback=lambda info: info.run == 0 and stamps.append(time.perf_counter()))
+                per_step = np.diff(np.asarray(stamps)[4::5]) / 5 if len(stamps) > 10 else [math.inf]
+                key = (device, n)
+                best[key] = min(best.get(key, math.inf), float(np.min(per_step)))
+    return [{"device": d, "restarts": n, "step_s": v, "restart_steps_per_s": n / v} for (d, n), v in best.items()]
+
+
+def restart_table(rows: list[dict[str, Any]]) -> str:
+    out = ["size     device  restarts  ms/step (min)  restart-steps/s  cost vs 1 restart"]
+    one = {(r["size"], r["device"]): r["step_s"] for r in rows if r["restarts"] == 1}
+    for r in rows:
+        base = one.get((r["size"], r["device"]))
+        out.append(f"{r['size']:<8} {r['device']:<7} {r['restarts']:>8}  {1000 * r['step_s']:>13.1f}  "
+                   f"{r['restart_steps_per_s']:>15.0f}  {r['step_s'] / base if base else math.nan:>16.2f}x")
+    return "\n".join(out)
+
+
 def table(rows: list[dict[str, Any]]) -> str:
     out = []
     for r in rows:
@@ -276,9 +326,17 @@ def run(args: argparse.Namespace) -> int:
                        "converge": pw["converge_s"] / pf["converge_s"],
                        "peak_rss": pw["peak_rss_mb"] / pf["peak_rss_mb"],
                        "rss_rise": pw["rss_rise_mb"] / pf["rss_rise_mb"] if pf["rss_rise_mb"] > 0 else math.nan})
+    restart_rows = []
+    for label, size in cfg["sizes"].items():
+        bc.progress(f"speed {label}: batched restarts {', '.join(map(str, cfg['restarts']))} ...")
+        got = bc.run_isolated(time_restarts, {"size": size, "n_frames": cfg["n_frames"], "restarts": cfg["restarts"],
+                                              "steps": cfg["restart_steps"], "rounds": cfg["rounds"]}, threads=threads)
+        restart_rows += [{"size": label, **r} for r in got]
     wall = time.perf_counter() - t0
     machine = bc.machine_info()
     print(table(rows))
+    print()
+    print(restart_table(restart_rows))
     print()
     for q in ratios:
         print(f"{q['size']}: per-window / per-frame = {q['step']:.1f}x per step (min; median {q['step_median']:.1f}x, "
@@ -294,7 +352,7 @@ def run(args: argparse.Namespace) -> int:
               "settings": {"n_frames": cfg["n_frames"], "sizes": {k: list(v) for k, v in cfg["sizes"].items()},
                            "reps": cfg["reps"], "threads": threads, "batch_windows": args.batch_windows,
                            "memory_steps": MEMORY_STEPS},
-              "rows": rows, "ratios": ratios, "wall_s": wall, "machine": machine}
+              "rows": rows, "ratios": ratios, "restart_rows": restart_rows, "wall_s": wall, "machine": machine}
     path = bc.write_record(record, args.out, "speed")
     print(f"wrote {path}")
     return 0

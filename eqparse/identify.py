@@ -199,14 +199,14 @@ def analyse(system: OdeSystem, *, seed: int = _SEED) -> IdentifiabilityReport:
         pinned = sorted(by_known | by_numbers, key=order)
         notes.append(f"{_fixed_terms(system, set(pinned))} the scale of "
                      f"{_join(pinned)}: the encoder must learn it in the equation's own units")
-    if _power_symmetric(system):
+    if power_symmetric(system):
         notes.append("a first-order linear equation: any power of the state (minus its rest level) obeys "
                      "the same equation with the rate multiplied by that power, so a nonlinear encoder "
                      "(mlp, cnn) can report any rate; fit it with --encoder linear")
     return IdentifiabilityReport(tuple(reports), rank, tuple(notes))
 
 
-def _power_symmetric(system: OdeSystem) -> bool:
+def power_symmetric(system: OdeSystem) -> bool:
     """x' = a*(x - c) is solved by (x - c)**p with rate p*a: true for one linear first-order state."""
     if len(system.states) != 1 or system.max_order != 1:
         return False

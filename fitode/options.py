@@ -139,7 +139,7 @@ def add_training_arguments(parser: argparse.ArgumentParser, *, title: str = "tra
     """
     from fitode.train import config as cfg
 
-    names = {"integrator": cfg.INTEGRATOR_NAMES, "encoder": cfg.ENCODER_NAMES, "device": cfg.DEVICE_NAMES}
+    names = {"integrator": cfg.INTEGRATOR_NAMES, "encoder": cfg.ENCODER_CHOICES, "device": cfg.DEVICE_NAMES}
     defaults = cfg.defaults()
     group = parser.add_argument_group(title)
     for name in fields:

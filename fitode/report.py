@@ -104,9 +104,12 @@ def understanding_lines(ode, spec, analysis, clip, n_train: int, settings: Mappi
     if settings.get("gauge", True):
         from fitode.cmd_check import gauge_lines
         lines += gauge_lines(ode)
+    from fitode.train.config import TrainConfig, resolve_encoder
+    _, encoder = resolve_encoder(TrainConfig(encoder=settings["encoder"]), ode)
     lines.append(f"training: {settings['restarts']} restarts, up to {settings['max_steps']} steps, window "
-                 f"{settings['window']} frames, {settings['integrator']} integrator, {settings['encoder']} encoder, "
-                 f"{settings['device']}, seed {settings['seed']}")
+                 f"{settings['window']} frames, {settings['integrator']} integrator, {settings['device']}, "
+                 f"seed {settings['seed']}")
+    lines.append(f"encoder: {encoder}")
     return lines
 
 

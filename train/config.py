@@ -7,12 +7,13 @@ are listed here and nowhere else; the modules that implement them assert they ag
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Any, Mapping
 
 from fitode.errors import ConfigError
 
 ENCODER_NAMES = ("mlp", "cnn", "linear")
+ENCODER_CHOICES = ("auto",) + ENCODER_NAMES  # auto: linear where a free encoder could report any rate
 INTEGRATOR_NAMES = ("rk4", "symplectic", "euler")
 INTEGRATOR_ALIASES = {"paper": "symplectic", "semi-implicit": "symplectic", "semi_implicit": "symplectic",
                       "explicit-euler": "euler"}
@@ -29,7 +30,9 @@ class TrainConfig:
     constants (scaled per constant, see fitode.codegen.constants). batch_windows: windows per
     step (None: all). use_kl: the KL term (off only for the paper's ablation). prior: (mean, std)
     of the latent. integrator, substeps, initial_state: how the physics block rolls out (see
-    fitode.codegen). encoder: the frame encoder's architecture. gauge: learn the scale and
+    fitode.codegen). encoder: the frame encoder's architecture; "auto" picks linear for a single
+    first-order linear equation (a free encoder could report any power of its state, which
+    decays at any rate) and mlp (the paper's) otherwise. gauge: learn the scale and
     offset between latent and physical state where the equation needs them (off: the paper's
     latent = state). tol, patience, settle_factor: the stopping rule (train/stopping.py).
     horizon_warmup: steps over which the rollout grows to the whole window. selection_factor:
@@ -53,7 +56,7 @@ class TrainConfig:
     integrator: str = "rk4"
     substeps: int = 1
     initial_state: str = "difference"
-    encoder: str = "mlp"
+    encoder: str = "auto"
     gauge: bool = True
     tol: float = 1e-3
     patience: int = 100
@@ -89,7 +92,7 @@ class TrainConfig:
         self.integrator = _choice("integrator", INTEGRATOR_ALIASES.get(self.integrator, self.integrator),
                                   INTEGRATOR_NAMES)
         self.initial_state = _choice("initial_state", self.initial_state, INITIAL_STATE_NAMES)
-        self.encoder = _choice("encoder", self.encoder, ENCODER_NAMES)
+        self.encoder = _choice("encoder", self.encoder, ENCODER_CHOICES)
         device = str(self.device)
         if device.split(":")[0] not in DEVICE_NAMES:
             raise ConfigError(f"unknown device {self.device!r}; use cpu or cuda")
@@ -109,6 +112,17 @@ class TrainConfig:
         d = asdict(self)
         d["prior"] = list(self.prior)
         return d
+
+
+def resolve_encoder(config: "TrainConfig", system) -> tuple["TrainConfig", str]:
+    """The architecture "auto" stands for with this equation, and why (one line)."""
+    if config.encoder != "auto":
+        return config, f"{config.encoder} (as asked)"
+    from fitode.eqparse.identify import power_symmetric  # sympy: only when a fit is set up
+    if power_symmetric(system):
+        return replace(config, encoder="linear"), ("linear (auto: a single first-order linear equation, whose "
+                                                   "rate a free encoder could multiply by any power)")
+    return replace(config, encoder="mlp"), "mlp (auto: the paper's encoder)"
 
 
 def defaults() -> dict[str, Any]:

@@ -17,7 +17,7 @@ from fitode.eqparse import OdeSystem, ParamSpec, analyse
 from fitode.eqparse.gauge import gauge_plan
 from fitode.errors import TrainingError
 
-from .config import TrainConfig
+from .config import TrainConfig, resolve_encoder
 from .loop import Callback, StepInfo, Trained, train_restarts
 from .observe import ObservationModel, observation_model
 from .result import Estimate, FitResult
@@ -69,6 +69,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
                observe: str | ObservationModel | None = None, meta: dict | None = None) -> FitResult:
     """Every restart on raw float frames (T, C, H, W); training uses the first train_frames."""
     observation = observation_model(observe)
+    config, encoder_reason = resolve_encoder(config, system)
     device = torch.device(config.device)
     n_total = frames.shape[0]
     n_train = n_total if train_frames is None else int(train_frames)
@@ -118,7 +119,8 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         unit = params.get(name, ParamSpec()).unit
         estimates[name] = Estimate(float(vals.mean()), float(vals.std()) if len(vals) > 1 else 0.0, len(vals), unit)
     findings, numbers = video_checks(latents[best, :n_train], rollouts[best, :n_train], coefs, dt,
-                                     records[best].score, oscillator=system.max_order >= 2)
+                                     records[best].score, oscillator=system.max_order >= 2,
+                                     encoder=config.encoder, rank=prepared.rank)
     verdicts = judge(system.learnable, records, selected, {n: e.value for n, e in estimates.items()}, findings,
                      analysis=analyse(system))
     return FitResult(
@@ -127,7 +129,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         states=list(system.states), equation=system.text, fixed=dict(system.fixed),
         settings=config.as_dict(), selection_factor=config.selection_factor,
         meta={**(meta or {}), "interrupted": interrupted, "observation": observation.name,
-              "subspace": prepared.note, "rank": prepared.rank,
+              "subspace": prepared.note, "rank": prepared.rank, "encoder": encoder_reason,
               "gauge": {s: g.describe() for s, g in plan.items()}},
         verdicts={n: v.to_dict() for n, v in verdicts.items()},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},

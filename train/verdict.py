@@ -8,7 +8,9 @@ trainer can check against the video itself:
   with the estimated constants) must repeat with them;
 - activity: the latent must move wherever the frames still change, not only in a transient;
 - agreement: the restarts the estimate comes from must agree, and a restart that scored as well
-  but ended elsewhere makes the estimate ambiguous;
+  and came near in loss but ended elsewhere makes the estimate ambiguous;
+- one-way motion: a decay, a drain or a fall can be bent by a free encoder into a solution with
+  other constants, which no score can see; only a linear readout of few components is trusted;
 - what the equation lets a video measure (fitode.eqparse.identify): a constant that enters only
   through a combination, or whose value depends on the latent's units until calibrated.
 The worst finding decides: any "not trustworthy" beats "ambiguous", which beats "trusted".
@@ -30,6 +32,9 @@ PERIOD_TOL = 0.1
 AGREE_TOL = 0.05
 SETTLED = 0.005  # a constant that moved less than this (relative) over the last MOTION_STEPS steps has settled
 MOTION_STEPS = 200
+RIVAL_LOSS = 10.0  # a restart that scores alike is a rival only if its loss is within this factor
+ONE_WAY_RHO = 0.95
+ONE_WAY_RANK = 2  # a linear readout of more components than this can bend a one-way trajectory
 QUIET = 0.1  # a quarter of the clip where the latent moves less than this fraction of its spread
 
 
@@ -54,11 +59,22 @@ class Verdict:
 
 
 def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt: float, score: float | None,
-                 oscillator: bool) -> tuple[list[Finding], dict[str, float | None]]:
+                 oscillator: bool, encoder: str = "mlp", rank: int = 0) -> tuple[list[Finding], dict[str, float | None]]:
     """Findings that hold for every constant, from the best run's latent and rollout (training
-    frames only) and the frames' principal components; and the numbers behind them."""
+    frames only), the frames' principal components, the encoder's architecture and the rank of
+    the signal subspace it read; and the numbers behind them."""
     findings: list[Finding] = []
     numbers: dict[str, float | None] = {"score": score}
+    one_way = _one_way(latent)
+    numbers["one_way"] = one_way
+    if one_way and encoder != "linear":
+        findings.append(Finding("not trustworthy", f"the state changes one way only, and a free ({encoder}) encoder "
+                                "can bend a one-way trajectory into a solution with other constants; fit it with "
+                                "--encoder linear where the camera sees the state linearly (brightness)"))
+    elif one_way and rank > ONE_WAY_RANK:
+        findings.append(Finding("ambiguous", f"the state changes one way only, and a linear readout of {rank} "
+                                "principal components can still bend it (an object that moves, not one that "
+                                "brightens)"))
     if score is None or not math.isfinite(score) or score < SCORE_MIN:
         shown = "nan" if score is None or not math.isfinite(score) else f"{score:.2f}"
         findings.append(Finding("not trustworthy", f"no restart's latent tells the frames apart (best score {shown}; "
@@ -79,6 +95,20 @@ def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt:
     if quiet is not None:
         findings.append(Finding("not trustworthy", quiet))
     return findings, numbers
+
+
+def _one_way(latent: np.ndarray) -> bool:
+    """True when the latent moves one way over the clip: its rank correlation with time is near 1
+    in every dimension (a decay, a drain, a fall), where no score can judge a bend."""
+    z = np.asarray(latent, dtype=float)
+    if z.ndim == 1:
+        z = z[:, None]
+    if len(z) < 8 or not np.all(np.isfinite(z)):
+        return False
+    t = np.arange(len(z), dtype=float)
+    ranks = np.argsort(np.argsort(z, axis=0), axis=0).astype(float)
+    rho = [abs(np.corrcoef(ranks[:, j], t)[0, 1]) if ranks[:, j].std() > 0 else 0.0 for j in range(z.shape[1])]
+    return bool(min(rho) > ONE_WAY_RHO)
 
 
 def _quiet_quarter(latent: np.ndarray, coefs: np.ndarray, dt: float) -> str | None:
@@ -134,8 +164,10 @@ def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[st
         if len(vals) > 1 and np.std(vals) > AGREE_TOL * max(abs(value), 1e-12):
             found.append(Finding("ambiguous", "the selected restarts disagree: "
                                  + ", ".join(f"{v:.4g}" for v in vals)))
+        best_loss = min((r.loss for r in sel), default=math.inf)
         rivals = [r for r in runs if r.index not in selected and r.status == "ok" and name in r.final
                   and best_score is not None and r.score is not None and r.score >= best_score - SCORE_MARGIN
+                  and r.loss <= RIVAL_LOSS * best_loss
                   and abs(r.final[name] - value) > AGREE_TOL * max(abs(value), 1e-12)]
         if rivals:
             found.append(Finding("ambiguous", "restarts that tell the frames apart as well ended elsewhere: "
