@@ -275,7 +275,7 @@ def _gauge_scaled(result) -> bool:
 
 def _verdict(result, name: str) -> dict[str, str]:
     v = result.verdicts.get(name) or {"verdict": "not trustworthy", "reason": "no verdict was made"}
-    return {"verdict": v["verdict"], "verdict_reason": v["reason"]}
+    return {"verdict": v["verdict"], "verdict_reason": v["reason"], "verdict_other_reasons": v.get("other_reasons", [])}
 
 
 def _run_entry(run: dict[str, Any], selected: bool) -> dict[str, Any]:

@@ -23,7 +23,7 @@ from fitode.eqparse import OdeSystem, ParamSpec
 from fitode.eqparse.gauge import StateGauge
 from fitode.errors import FitodeError, TrainingError
 
-from .config import TrainConfig
+from .config import TrainConfig, resolve_encoder
 from .gauge import LR_FACTOR, Gauge
 from .history import History
 from .loss import restart_losses
@@ -67,6 +67,7 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
     """Train len(inits) restarts on prepared frames (T, C, H, W) already on the target device.
     targets: {restart: (T,) latent} whose encoder first learns that latent (see distill)."""
     t0 = time.perf_counter()
+    config, _ = resolve_encoder(config, system)
     n_runs = len(inits)
     device = frames.device
     windows = Windows(frames.shape[0], config.window)

@@ -39,6 +39,7 @@ class RunRecord:
     stop_reason: str = ""  # "converged" | "max_steps" | "non-finite" | "interrupted"
     gauge: dict[str, dict[str, float]] = field(default_factory=dict)  # state -> {"scale", "offset"}
     score: float | None = None  # does its latent tell the frames apart (fitode.train.score); None: not scored
+    miss: float | None = None  # final window prediction error over the latent's variance (scale-free, no KL)
     origin: str = ""  # where its start came from: "user", "equation file", "data" or "spread"
 
     @classmethod

@@ -103,6 +103,8 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
     for r in records:
         if r.status != "failed":
             r.score = separation_score(latents[r.index, :n_train], coefs, exclude=SCORE_EXCLUDE)
+            var = float(np.var(latents[r.index, :n_train], axis=0).sum())
+            r.miss = r.history.mse[-1] / var if r.history.mse and var > 0 else None
     interrupted = any(r.status == "interrupted" for r in records)
     selected = select_runs(records, config.selection_factor)
     if not selected and interrupted:
@@ -120,7 +122,8 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         estimates[name] = Estimate(float(vals.mean()), float(vals.std()) if len(vals) > 1 else 0.0, len(vals), unit)
     findings, numbers = video_checks(latents[best, :n_train], rollouts[best, :n_train], coefs, dt,
                                      records[best].score, oscillator=system.max_order >= 2,
-                                     encoder=config.encoder, rank=prepared.rank)
+                                     encoder=config.encoder, rank=prepared.rank,
+                                     mse=records[best].history.mse[-1] if records[best].history.mse else None)
     verdicts = judge(system.learnable, records, selected, {n: e.value for n, e in estimates.items()}, findings,
                      analysis=analyse(system))
     return FitResult(

@@ -8,7 +8,7 @@ trainer can check against the video itself:
   with the estimated constants) must repeat with them;
 - activity: the latent must move wherever the frames still change, not only in a transient;
 - agreement: the restarts the estimate comes from must agree, and a restart that scored as well
-  and came near in loss but ended elsewhere makes the estimate ambiguous;
+  and fits its latent about as well but ended elsewhere makes the estimate ambiguous;
 - one-way motion: a decay, a drain or a fall can be bent by a free encoder into a solution with
   other constants, which no score can see; only a linear readout of few components is trusted;
 - what the equation lets a video measure (fitode.eqparse.identify): a constant that enters only
@@ -32,7 +32,10 @@ PERIOD_TOL = 0.1
 AGREE_TOL = 0.05
 SETTLED = 0.005  # a constant that moved less than this (relative) over the last MOTION_STEPS steps has settled
 MOTION_STEPS = 200
-RIVAL_LOSS = 10.0  # a restart that scores alike is a rival only if its loss is within this factor
+MISS_MAX = 0.05  # window prediction error over the latent's variance: right fits measured 1e-5 to 1e-3
+RIVAL_MISS = 10.0  # a restart that scores alike is a rival only if it fits the latent about as well
+# (its window error over the latent's variance within this factor: the loss would mix in the KL term,
+# which differs between right fits of a one-way motion)
 ONE_WAY_RHO = 0.95
 ONE_WAY_RANK = 2  # a linear readout of more components than this can bend a one-way trajectory
 QUIET = 0.1  # a quarter of the clip where the latent moves less than this fraction of its spread
@@ -52,14 +55,16 @@ class Finding:
 @dataclass(frozen=True)
 class Verdict:
     verdict: str
-    reason: str
+    reason: str  # the first reason of the worst level, in one line
+    others: tuple[str, ...] = ()  # every other reason found, worst first
 
-    def to_dict(self) -> dict[str, str]:
-        return {"verdict": self.verdict, "reason": self.reason}
+    def to_dict(self) -> dict:
+        return {"verdict": self.verdict, "reason": self.reason, "other_reasons": list(self.others)}
 
 
 def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt: float, score: float | None,
-                 oscillator: bool, encoder: str = "mlp", rank: int = 0) -> tuple[list[Finding], dict[str, float | None]]:
+                 oscillator: bool, encoder: str = "mlp", rank: int = 0,
+                 mse: float | None = None) -> tuple[list[Finding], dict[str, float | None]]:
     """Findings that hold for every constant, from the best run's latent and rollout (training
     frames only), the frames' principal components, the encoder's architecture and the rank of
     the signal subspace it read; and the numbers behind them."""
@@ -80,6 +85,13 @@ def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt:
         findings.append(Finding("not trustworthy", f"no restart's latent tells the frames apart (best score {shown}; "
                                 "a latent that follows what the video shows scores above "
                                 f"{SCORE_MIN:g}): the object may be out of view, too small, or not moving"))
+    var = float(np.var(latent, axis=0).sum()) if latent.size else 0.0
+    miss = mse / var if mse is not None and var > 0 else None
+    numbers["window_miss"] = miss
+    if miss is None or not math.isfinite(miss) or miss > MISS_MAX:
+        shown = "n/a" if miss is None or not math.isfinite(miss) else f"{100 * miss:.2g}%"
+        findings.append(Finding("not trustworthy", f"the equation with these constants does not follow the latent "
+                                f"(its window predictions miss by {shown} of the latent's variance)"))
     t_frames = dominant_period(coefs, dt) if oscillator else None
     t_latent = dominant_period(latent, dt) if oscillator else None
     finite_roll = rollout[np.all(np.isfinite(rollout), axis=1)] if rollout.size else rollout
@@ -88,6 +100,9 @@ def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt:
     if t_frames is not None and t_latent is not None and abs(t_latent - t_frames) > PERIOD_TOL * t_frames:
         findings.append(Finding("not trustworthy", f"the latent repeats every {t_latent:.3g} s but the frames every "
                                 f"{t_frames:.3g} s: the latent is folded (such as x^2, at twice the frequency)"))
+    if t_frames is not None and t_latent is not None and t_roll is None:
+        findings.append(Finding("not trustworthy", f"the frames repeat every {t_frames:.3g} s but the equation with "
+                                "these constants does not oscillate over the clip"))
     if t_frames is not None and t_roll is not None and abs(t_roll - t_frames) > PERIOD_TOL * t_frames:
         findings.append(Finding("not trustworthy", f"the equation with these constants repeats every {t_roll:.3g} s "
                                 f"but the frames every {t_frames:.3g} s"))
@@ -133,9 +148,9 @@ def _quiet_quarter(latent: np.ndarray, coefs: np.ndarray, dt: float) -> str | No
 def _motion(run, name: str) -> float | None:
     """Relative change of a constant over the last MOTION_STEPS steps of a run's history."""
     series = run.history.constants.get(name, []) if hasattr(run.history, "constants") else []
-    if len(series) <= MOTION_STEPS:
+    if len(series) < 2:
         return None
-    now, then = series[-1], series[-1 - MOTION_STEPS]
+    now, then = series[-1], series[-1 - min(MOTION_STEPS, len(series) - 1)]  # a short run: since its start
     return abs(now - then) / max(abs(now), 1e-12)
 
 
@@ -164,10 +179,11 @@ def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[st
         if len(vals) > 1 and np.std(vals) > AGREE_TOL * max(abs(value), 1e-12):
             found.append(Finding("ambiguous", "the selected restarts disagree: "
                                  + ", ".join(f"{v:.4g}" for v in vals)))
-        best_loss = min((r.loss for r in sel), default=math.inf)
+        misses = [r.miss for r in sel if r.miss is not None]
+        best_miss = min(misses) if misses else math.inf
         rivals = [r for r in runs if r.index not in selected and r.status == "ok" and name in r.final
                   and best_score is not None and r.score is not None and r.score >= best_score - SCORE_MARGIN
-                  and r.loss <= RIVAL_LOSS * best_loss
+                  and (r.miss is None or r.miss <= RIVAL_MISS * best_miss)
                   and abs(r.final[name] - value) > AGREE_TOL * max(abs(value), 1e-12)]
         if rivals:
             found.append(Finding("ambiguous", "restarts that tell the frames apart as well ended elsewhere: "
@@ -177,13 +193,15 @@ def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[st
         if moving and min(moving) > SETTLED:
             found.append(Finding("ambiguous", f"still moving at the step limit ({100 * min(moving):.2g}% over the "
                                  f"last {MOTION_STEPS} steps); raise --max-steps"))
-        worst = max(found, key=lambda f: LEVELS.index(f.level)) if found else None
+        found.sort(key=lambda f: -LEVELS.index(f.level))  # stable: the checks' own order within a level
+        worst = found[0] if found else None
         if worst is None:
             agree = f"{len(sel)} restart{'s' if len(sel) != 1 else ''} agree" if len(sel) > 1 else "one restart"
             shown = f"{best_score:.2f}" if best_score is not None else "n/a"
             out[name] = Verdict("trusted", f"{agree}; the latent tells the frames apart (score {shown})")
         else:
-            out[name] = Verdict(worst.level, worst.reason)
+            more = f" (and {len(found) - 1} more reason{'s' if len(found) > 2 else ''})" if len(found) > 1 else ""
+            out[name] = Verdict(worst.level, worst.reason + more, tuple(f.reason for f in found[1:]))
     return out
 
 
