@@ -118,6 +118,9 @@ def test_local_batch_matches_each_result_and_reruns_only_the_broken_job(local_ba
     assert all(r["status"] == "complete" for r in rows.values())
     fixed = json.loads((out / "003-broken" / "result.json").read_text())
     assert float(rows["003-broken"]["gamma"]) == fixed["parameters"]["gamma"]["value"]
+    # every row carries the verdict its result.json gives
+    assert rows["003-broken"]["gamma.verdict"] == fixed["parameters"]["gamma"]["verdict"]
+    assert all(r["gamma.verdict"] in ("trusted", "ambiguous", "not trustworthy") for r in rows.values())
 
 
 ray_missing = importlib.util.find_spec("ray") is None

@@ -2,8 +2,9 @@
 
 summary.csv columns: name, setting, video, status, error, wall_s, reused, folder, stride, dt
 (the stride the job used, which `auto` may choose per video, and the resulting time step), then per
-constant NAME, NAME.std (spread over restarts), NAME.true and NAME.rel_error where a true
-value is given. aggregate.csv: setting, jobs, complete, failed, then per constant NAME.mean,
+constant NAME, NAME.std (spread over restarts), NAME.verdict (trusted / ambiguous / not
+trustworthy; its reason is in summary.json), NAME.true and NAME.rel_error where a true value is
+given. aggregate.csv: setting, jobs, complete, failed, then per constant NAME.mean,
 NAME.std (sample standard deviation over the setting's complete videos), NAME.n, NAME.true
 and NAME.rel_error (of the mean), as the paper's tables report them.
 
@@ -73,14 +74,14 @@ def summary_table(rows: list[SummaryRow]) -> tuple[list[str], list[list[Any]]]:
     has_truth = {n for r in rows for n in r.truth}
     header = ["name", "setting", "video", "status", "error", "wall_s", "reused", "folder", "stride", "dt"]
     for n in names:
-        header += [n, f"{n}.std"] + ([f"{n}.true", f"{n}.rel_error"] if n in has_truth else [])
+        header += [n, f"{n}.std", f"{n}.verdict"] + ([f"{n}.true", f"{n}.rel_error"] if n in has_truth else [])
     table = []
     for r in rows:
         line: list[Any] = [r.name, r.setting, r.video, r.status, r.error or "",
                            _round(r.wall_s, 3), r.reused, r.folder, r.details.get("stride"), r.details.get("dt")]
         for n in names:
             p = r.parameters.get(n) or {}
-            line += [p.get("value"), p.get("std")]
+            line += [p.get("value"), p.get("std"), p.get("verdict") or ""]
             if n in has_truth:
                 line += [r.truth.get(n), r.rel_error(n)]
         table.append(line)
