@@ -70,16 +70,6 @@ def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt:
     the signal subspace it read; and the numbers behind them."""
     findings: list[Finding] = []
     numbers: dict[str, float | None] = {"score": score}
-    one_way = _one_way(latent)
-    numbers["one_way"] = one_way
-    if one_way and encoder != "linear":
-        findings.append(Finding("not trustworthy", f"the state changes one way only, and a free ({encoder}) encoder "
-                                "can bend a one-way trajectory into a solution with other constants; fit it with "
-                                "--encoder linear where the camera sees the state linearly (brightness)"))
-    elif one_way and rank > ONE_WAY_RANK:
-        findings.append(Finding("ambiguous", f"the state changes one way only, and a linear readout of {rank} "
-                                "principal components can still bend it (an object that moves, not one that "
-                                "brightens)"))
     if score is None or not math.isfinite(score) or score < SCORE_MIN:
         shown = "nan" if score is None or not math.isfinite(score) else f"{score:.2f}"
         findings.append(Finding("not trustworthy", f"no restart's latent tells the frames apart (best score {shown}; "
@@ -92,6 +82,16 @@ def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt:
         shown = "n/a" if miss is None or not math.isfinite(miss) else f"{100 * miss:.2g}%"
         findings.append(Finding("not trustworthy", f"the equation with these constants does not follow the latent "
                                 f"(its window predictions miss by {shown} of the latent's variance)"))
+    one_way = _one_way(latent)
+    numbers["one_way"] = one_way
+    if one_way and encoder != "linear":
+        findings.append(Finding("not trustworthy", f"the state changes one way only, and a free ({encoder}) encoder "
+                                "can bend a one-way trajectory into a solution with other constants; fit it with "
+                                "--encoder linear where the camera sees the state linearly (brightness)"))
+    elif one_way and rank > ONE_WAY_RANK:
+        findings.append(Finding("ambiguous", f"the state changes one way only, and a linear readout of {rank} "
+                                "principal components can still bend it (an object that moves, not one that "
+                                "brightens)"))
     t_frames = dominant_period(coefs, dt) if oscillator else None
     t_latent = dominant_period(latent, dt) if oscillator else None
     finite_roll = rollout[np.all(np.isfinite(rollout), axis=1)] if rollout.size else rollout
