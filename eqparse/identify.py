@@ -202,7 +202,7 @@ def analyse(system: OdeSystem, *, seed: int = _SEED) -> IdentifiabilityReport:
     if power_symmetric(system):
         notes.append("a first-order linear equation: any power of the state (minus its rest level) obeys "
                      "the same equation with the rate multiplied by that power, so a nonlinear encoder "
-                     "(mlp, cnn) can report any rate; fit it with --encoder linear")
+                     "(mlp, cnn) can report any rate; the default encoder (auto) is therefore linear")
     return IdentifiabilityReport(tuple(reports), rank, tuple(notes))
 
 
