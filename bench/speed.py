@@ -27,7 +27,7 @@ Measured with --threads torch threads (default 2), each part in a fresh process:
   over the RSS before the first step.
 
 - restarts: ms per step of the real batched loop (fitode.train.loop, subspace and all) with 1, 4
-  and 16 restarts trained as one model, on cpu and, where torch sees one, cuda; the sizes
+, 8 and 16 restarts trained as one model, on cpu and, where torch sees one, cuda; the sizes
   alternate, repetition by repetition, and the table gives the minimum over hand-overs of 5
   steps; restart-steps per second = restarts / (s per step).
 
@@ -57,7 +57,7 @@ import common as bc  # noqa: E402
 EQUATION = "z'' + g1*z' + g0*z = 0"
 SIZES = {"50x50": (50, 50), "64x114": (64, 114)}
 MODES = ("per-frame", "per-window")
-FULL = {"n_frames": 270, "sizes": SIZES, "reps": 40, "max_steps": None, "restarts": (1, 4, 16),
+FULL = {"n_frames": 270, "sizes": SIZES, "reps": 40, "max_steps": None, "restarts": (1, 4, 8, 16),
         "restart_steps": 60, "rounds": 3}
 QUICK = {"n_frames": 40, "sizes": {"16x28": (16, 28)}, "reps": 3, "max_steps": 8, "restarts": (1, 2),
          "restart_steps": 15, "rounds": 1}
