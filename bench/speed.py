@@ -26,8 +26,8 @@ Measured with --threads torch threads (default 2), each part in a fresh process:
 - peak memory: the peak RSS of a process that loads the frames and takes 5 steps, and its rise
   over the RSS before the first step.
 
-- restarts: ms per step of the real batched loop (fitode.train.loop, subspace and all) with 1, 4
-, 8 and 16 restarts trained as one model, on cpu and, where torch sees one, cuda; the sizes
+- restarts: ms per step of the real batched loop (fitode.train.loop, subspace and all) with 1, 4,
+  8 and 16 restarts trained as one model, on cpu and, where torch sees one, cuda; the sizes
   alternate, repetition by repetition, and the table gives the minimum over hand-overs of 5
   steps; restart-steps per second = restarts / (s per step).
 
