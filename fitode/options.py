@@ -121,13 +121,14 @@ _TRAINING_HELP = {
     "min_steps": ("N", "steps before early stopping may stop a restart"),
     "window": ("N", "frames per training window"),
     "integrator": (None, "ODE integrator"),
-    "encoder": (None, "frame encoder: mlp (the paper's), cnn, or linear (an affine map of the pixels: "
-                      "for decays, see README)"),
+    "encoder": (None, "frame encoder: auto (linear for a single first-order linear equation, else mlp), "
+                      "mlp (the paper's), cnn, or linear (an affine map of the frames: for decays, see README)"),
     "device": (None, "where to train"),
     "seed": ("N", "random seed"),
     "threads": ("N", "torch threads for the fit"),
 }
-TRAINING_FLAGS = ("restarts", "max_steps", "window", "integrator", "encoder", "device", "seed", "threads")
+TRAINING_FLAGS = ("restarts", "max_steps", "min_steps", "window", "integrator", "encoder", "device", "seed",
+                  "threads")
 
 
 def add_training_arguments(parser: argparse.ArgumentParser, *, title: str = "training",

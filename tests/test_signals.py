@@ -92,7 +92,9 @@ def test_sigterm_during_a_fit_leaves_the_run_incomplete(tmp_path):
 
     video = write_mp4(tmp_path / "glow.mp4", render_glow(decay_values(60, 10.0, 0.5), size=16), 10.0)
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "fitode", str(video), "--eq", EQ, "--max-steps", "100000", "--window", "8",
+    # --min-steps: restarts that converge stop early, and this fit must still be training when signalled
+    cmd = [sys.executable, "-m", "fitode", str(video), "--eq", EQ, "--max-steps", "100000", "--min-steps", "100000",
+           "--window", "8",
            "--stride", "1", "--restarts", "2", "--out", str(out)]
     proc = subprocess.Popen(cmd, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     deadline = time.time() + 120
