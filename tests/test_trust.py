@@ -218,3 +218,18 @@ def test_led_scene_with_default_flags(eq):
     res = fitode.fit(v.frames, v.dt, eq=eq, progress=False)
     assert abs(res.values["gamma"] - 0.92) / 0.92 < 0.08, res.values
     assert res.verdicts["gamma"]["verdict"] == "trusted", res.verdicts
+
+
+def test_a_signal_during_a_fit_waits_for_the_next_step():
+    import os
+    import signal as sig
+
+    from fitode.train import interrupts
+    before = sig.getsignal(sig.SIGINT)
+    with interrupts.deferred_signals():
+        os.kill(os.getpid(), sig.SIGINT)  # arrives now, but must not raise inside a step
+        assert interrupts.pending()
+        with pytest.raises(KeyboardInterrupt):
+            interrupts.check()
+    assert sig.getsignal(sig.SIGINT) is before
+    interrupts.check()  # outside a fit nothing is pending

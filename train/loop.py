@@ -23,6 +23,7 @@ from fitode.eqparse import OdeSystem, ParamSpec
 from fitode.eqparse.gauge import StateGauge
 from fitode.errors import FitodeError, TrainingError
 
+from . import interrupts
 from .config import TrainConfig, resolve_encoder
 from .gauge import LR_FACTOR, Gauge
 from .history import History
@@ -84,8 +85,7 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
     gauge = Gauge(plan, system.states, n_runs, config.prior, enabled=config.gauge).to(device)
     if targets:
         distill(encoder, frames, targets, config)
-    with torch.no_grad():
-        gauge.enter_domain(torch.cat([encoder(chunk) for chunk in frames.split(512)], dim=1))
+    gauge.enter_domain(encode_all(encoder, frames))
 
     groups = [{"params": list(encoder.parameters()), "lr": config.lr, "name": "encoder"}]
     for g in block.param_groups(lr=config.const_lr):
@@ -130,6 +130,7 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
 
     try:
         for step in range(1, config.max_steps + 1):
+            interrupts.check()  # a signal stops the fit here, never inside a step (see interrupts.py)
             starts = all_starts
             if config.batch_windows and config.batch_windows < windows.count:
                 pick = torch.randperm(windows.count, generator=gen)[: config.batch_windows]
@@ -181,6 +182,12 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
 DISTILL_STEPS = 300
 
 
+@torch.no_grad()
+def encode_all(encoder, frames: torch.Tensor) -> torch.Tensor:
+    """Every restart's latent of every frame, (R, T, d), encoded in chunks to bound the memory."""
+    return torch.cat([encoder(chunk) for chunk in frames.split(512)], dim=1)
+
+
 def distill(encoder, frames: torch.Tensor, targets: Mapping[int, np.ndarray], config: TrainConfig) -> None:
     """Teach the encoders of some restarts a given latent (standardised to the prior) before the
     joint training: a start from the data carries the readout of the frames it was fitted to."""
@@ -196,6 +203,7 @@ def distill(encoder, frames: torch.Tensor, targets: Mapping[int, np.ndarray], co
     n = min(frames.shape[0], min(len(z) for z in targets.values()))
     opt = BatchedAdam([{"params": list(encoder.parameters()), "lr": config.lr * 10, "name": "encoder"}], n_runs)
     for _ in range(DISTILL_STEPS):
+        interrupts.check()
         z = encoder(frames[:n])[..., :1]
         loss = (z - target[:, :n]).pow(2).mean(dim=(1, 2))
         opt.zero_grad()
@@ -235,7 +243,7 @@ def _explain(encoder, block: PhysicsBlock, gauge: Gauge, frames, windows: Window
     """Name the term that went non-finite: replay restart r (frozen where it failed) on every window."""
     try:
         idx = windows.index(windows.starts().to(frames.device))[:, :length]
-        z = encoder(frames)[:, idx]  # (R, W, L, d)
+        z = encode_all(encoder, frames)[:, idx]  # (R, W, L, d)
         head = gauge.to_state(z[:, :, :block.n_context])
         err = block.explain(head, length, dt, restart=r)
         return f"{err} (step {step})"

@@ -17,8 +17,9 @@ from fitode.eqparse import OdeSystem, ParamSpec, analyse
 from fitode.eqparse.gauge import gauge_plan
 from fitode.errors import TrainingError
 
+from . import interrupts
 from .config import TrainConfig, resolve_encoder
-from .loop import Callback, StepInfo, Trained, train_restarts
+from .loop import Callback, StepInfo, Trained, encode_all, train_restarts
 from .observe import ObservationModel, observation_model
 from .result import Estimate, FitResult
 from .score import dominant_period, separation_score
@@ -83,29 +84,29 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
     seeds = [config.seed * 1000 + i for i in range(len(inits))]
     plan = gauge_plan(system)
     targets: dict[int, np.ndarray] = {}
-    with _threads(config.threads):
+    coefs = prepared.components[:n_train]  # the training frames' leading principal components
+    with _threads(config.threads), interrupts.deferred_signals():
         n_data = min(DATA_STARTS, len(inits) - 1)
         if n_data:
             candidates = restart_inits(system, params, CANDIDATES, config.seed + 1, None)[1:] + inits[:1]
-            comps = prepared.components[:n_train]
-            period = dominant_period(comps, dt) if system.max_order >= 2 else None
-            found = data_starts(comps, dt, system, params, config, plan, candidates, n_data, period=period)
+            period = dominant_period(coefs, dt) if system.max_order >= 2 else None
+            found = data_starts(coefs, dt, system, params, config, plan, candidates, n_data, period=period)
             for i, start in enumerate(found, start=1):
                 inits[i], origins[i], targets[i] = start.constants, "data", start.latent
         trained = train_restarts(frames[:n_train], dt, system, params, config, inits, seeds=seeds,
                                  observation=observation, plan=plan, callback=callback, progress=progress,
                                  targets=targets)
         latents, rollouts = _trajectories(trained, frames, dt)
+        late = interrupts.pending()  # a signal after the last step: the fit finished, but the user asked to stop
     records = trained.records
     for rec, origin in zip(records, origins):
         rec.origin = origin
-    coefs = prepared.components[:n_train]
     for r in records:
         if r.status != "failed":
             r.score = separation_score(latents[r.index, :n_train], coefs, exclude=SCORE_EXCLUDE)
             var = float(np.var(latents[r.index, :n_train], axis=0).sum())
             r.miss = r.history.mse[-1] / var if r.history.mse and var > 0 else None
-    interrupted = any(r.status == "interrupted" for r in records)
+    interrupted = late or any(r.status == "interrupted" for r in records)
     selected = select_runs(records, config.selection_factor)
     if not selected and interrupted:
         selected = select_runs(records, config.selection_factor, statuses=("ok", "interrupted"))
@@ -122,8 +123,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         estimates[name] = Estimate(float(vals.mean()), float(vals.std()) if len(vals) > 1 else 0.0, len(vals), unit)
     findings, numbers = video_checks(latents[best, :n_train], rollouts[best, :n_train], coefs, dt,
                                      records[best].score, oscillator=system.max_order >= 2,
-                                     encoder=config.encoder, rank=prepared.rank,
-                                     mse=records[best].history.mse[-1] if records[best].history.mse else None)
+                                     encoder=config.encoder, rank=prepared.rank, miss=records[best].miss)
     verdicts = judge(system.learnable, records, selected, {n: e.value for n, e in estimates.items()}, findings,
                      analysis=analyse(system))
     return FitResult(
@@ -159,7 +159,7 @@ def _trajectories(trained: Trained, frames: torch.Tensor, dt: float) -> tuple[np
     frames (in latent units; NaN where a long extrapolation leaves the equation's domain)."""
     encoder, block, gauge = trained.encoder, trained.block, trained.gauge
     encoder.eval()
-    latent = torch.cat([encoder(chunk) for chunk in frames.split(512)], dim=1)  # (R, T, d)
+    latent = encode_all(encoder, frames)
     head = gauge.to_state(latent[:, None, : block.n_context])
     rollout = gauge.to_latent(block(head, frames.shape[0], dt)[:, 0])
     return latent.cpu().double().numpy(), rollout.cpu().double().numpy()
