@@ -19,7 +19,6 @@ import subprocess
 import sys
 import time
 from concurrent.futures import as_completed
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 

@@ -172,7 +172,6 @@ class PhysicsBlock(nn.Module):
                 self._param(name).copy_(torch.tensor([rep.raw(x) / sc for x, sc in zip(vs, scales)]))
                 if rep.kind == "identity":
                     getattr(self, "scale_" + self._param_attr[name][len("const_"):]).copy_(torch.tensor(scales))
-            self._scale_values[name] = vs[0]
 
     def bounds(self, name: str) -> tuple[float | None, float | None]:
         self._param(name)

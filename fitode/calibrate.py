@@ -340,8 +340,7 @@ def _refine(block, loss_of, steps: int) -> tuple[dict[str, float] | None, float]
     import torch
 
     params = [p for p in block.parameters() if p.requires_grad]
-    groups = block.param_groups(lr=0.05) if hasattr(block, "param_groups") else [{"params": params, "lr": 0.05}]
-    opt = torch.optim.Adam(groups)
+    opt = torch.optim.Adam(block.param_groups(lr=0.05))
     best_loss, best_vals = math.inf, None
 
     def snapshot(loss: float):

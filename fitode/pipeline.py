@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
 from fitode.errors import FitodeError
+from fitode.train.history import History  # torch-free, like everything this module imports at the top
 
 DEFAULT_TRAIN_FRACTION = 1.0
 RUNS_DIR = "fitode-runs"
@@ -206,15 +207,13 @@ class _Recorder:
     """Keeps every step's numbers so an interrupted or failed fit still leaves its history."""
 
     def __init__(self, names: Iterable[str], chained=None):
-        from fitode.train.history import History
         self.names = list(names)
         self.runs: dict[int, dict[str, Any]] = {}
         self.chained = chained
-        self._history = History
 
     def __call__(self, info) -> None:
         run = self.runs.setdefault(info.run, {"index": info.run, "status": "running", "final": {},
-                                              "history": self._history.for_constants(self.names)})
+                                              "history": History.for_constants(self.names)})
         run["history"].append(info.step, info.loss, info.mse, info.kl, info.constants)
         run["final"], run["loss"], run["steps"] = dict(info.constants), info.loss, info.step
         if self.chained is not None:

@@ -24,9 +24,9 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
-from dataclasses import asdict, is_dataclass
+from dataclasses import asdict
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Mapping
 
 from fitode.jsonio import to_jsonable, write_json  # noqa: F401 - write_json: callers use rep.write_json
 
@@ -114,12 +114,7 @@ def understanding_lines(ode, spec, analysis, clip, n_train: int, settings: Mappi
 
 
 def _clip_lines(clip) -> list[str]:
-    if hasattr(clip, "describe"):
-        try:
-            return list(clip.describe())
-        except Exception:  # noqa: BLE001 - description is cosmetic
-            pass
-    return [f"input: {getattr(clip, 'path', '?')}", f"dt: {clip.dt:.6g} s"]
+    return list(clip.describe())
 
 
 # ----------------------------------------------------------------------------- result.json
@@ -141,21 +136,21 @@ def base_report(video, clip, ode, spec, analysis, settings: Mapping[str, Any], n
         "input": {
             "file": str(video),
             "name": Path(str(video)).name,
-            "sha256": getattr(clip, "sha256", None),
+            "sha256": clip.sha256,
             "frames_used": n,
             "frames_train": n_train,
             "frame_shape": [int(s) for s in clip.frames.shape[1:]],
             "fps": float(clip.fps),
-            "fps_source": getattr(clip, "fps_source", None),
+            "fps_source": clip.fps_source,
             "stride": int(clip.stride),
-            "stride_reason": getattr(clip, "stride_reason", None),
+            "stride_reason": clip.stride_reason,
             "dt": float(clip.dt),
             "duration_s": (n - 1) * float(clip.dt),
             "first_frame_time_s": t0,
-            "fps_container": getattr(clip, "fps_container", None),
-            "source_size": _plain(getattr(clip, "source_size", None)),
-            "n_source_frames": getattr(clip, "n_source_frames", None),
-            "notes": list(getattr(clip, "notes", []) or []),
+            "fps_container": clip.fps_container,
+            "source_size": _plain(clip.source_size),
+            "n_source_frames": clip.n_source_frames,
+            "notes": list(clip.notes),
             "options": {k: _plain(v) for k, v in (options or {}).items()},
         },
         "equation": {

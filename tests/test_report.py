@@ -1,6 +1,7 @@
 """Reports and plots without training: result.json content, the table's warnings, valid PNGs."""
 import json
 import math
+from dataclasses import asdict
 
 import cv2
 import numpy as np
@@ -147,7 +148,7 @@ def test_number_format_keeps_five_significant_digits(v, text):
 def test_plots_are_valid_pngs(tmp_path):
     res = result(["k", "w"], [{"k": 1.0, "w": 4.0}, {"k": 1.1, "w": 4.1}, {"k": 3.0, "w": 3.0}],
                  statuses=["ok", "ok", "failed"])
-    runs = [dict(r.__dict__, selected=r.index in res.selected) for r in res.runs]
+    runs = [dict(asdict(r), selected=r.index in res.selected) for r in res.runs]  # as the pipeline passes them
     rollout = res.rollout.copy()
     rollout[30:] = np.nan  # a rollout that left the finite range must not break the plot
     plots.plot_latent(tmp_path / "latent.png", res.time, res.latent, rollout, 32, ["x"], window=10)

@@ -42,10 +42,12 @@ class RunRecord:
     miss: float | None = None  # final window prediction error over the latent's variance (scale-free, no KL)
     origin: str = ""  # where its start came from: "user", "equation file", "data" or "spread"
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.history, History):  # a plain dict, as JSON and hand-built records give it
+            self.history = History.from_dict(self.history)
+
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "RunRecord":
-        d = dict(d)
-        d["history"] = History.from_dict(d.get("history"))
         known = {f for f in cls.__dataclass_fields__}
         return cls(**{k: v for k, v in d.items() if k in known})
 

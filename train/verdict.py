@@ -64,10 +64,11 @@ class Verdict:
 
 def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt: float, score: float | None,
                  oscillator: bool, encoder: str = "mlp", rank: int = 0,
-                 mse: float | None = None) -> tuple[list[Finding], dict[str, float | None]]:
+                 miss: float | None = None) -> tuple[list[Finding], dict[str, float | None]]:
     """Findings that hold for every constant, from the best run's latent and rollout (training
     frames only), the frames' principal components, the encoder's architecture and the rank of
-    the signal subspace it read; and the numbers behind them."""
+    the signal subspace it read, and the best run's window miss (RunRecord.miss); and the numbers
+    behind them."""
     findings: list[Finding] = []
     numbers: dict[str, float | None] = {"score": score}
     if score is None or not math.isfinite(score) or score < SCORE_MIN:
@@ -75,8 +76,6 @@ def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt:
         findings.append(Finding("not trustworthy", f"no restart's latent tells the frames apart (best score {shown}; "
                                 "a latent that follows what the video shows scores above "
                                 f"{SCORE_MIN:g}): the object may be out of view, too small, or not moving"))
-    var = float(np.var(latent, axis=0).sum()) if latent.size else 0.0
-    miss = mse / var if mse is not None and var > 0 else None
     numbers["window_miss"] = miss
     if miss is None or not math.isfinite(miss) or miss > MISS_MAX:
         shown = "n/a" if miss is None or not math.isfinite(miss) else f"{100 * miss:.2g}%"
@@ -147,7 +146,7 @@ def _quiet_quarter(latent: np.ndarray, coefs: np.ndarray, dt: float) -> str | No
 
 def _motion(run, name: str) -> float | None:
     """Relative change of a constant over the last MOTION_STEPS steps of a run's history."""
-    series = run.history.constants.get(name, []) if hasattr(run.history, "constants") else []
+    series = run.history.constants.get(name, [])
     if len(series) < 2:
         return None
     now, then = series[-1], series[-1 - min(MOTION_STEPS, len(series) - 1)]  # a short run: since its start
