@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -62,6 +63,7 @@ FULL = {"n_frames": 270, "sizes": SIZES, "reps": 40, "max_steps": None, "restart
 QUICK = {"n_frames": 40, "sizes": {"16x28": (16, 28)}, "reps": 3, "max_steps": 8, "restarts": (1, 2),
          "restart_steps": 15, "rounds": 1}
 MEMORY_STEPS = 5
+PARTS = ("all", "encodings", "restarts", "answer")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -71,6 +73,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--reps", type=int, default=None, help="timed steps per mode (default 40)")
     parser.add_argument("--batch-windows", type=int, default=None,
                         help="windows per step (default: TrainConfig's, all of them)")
+    parser.add_argument("--part", choices=PARTS, default="all",
+                        help="measure one part only: encodings (per-frame vs per-window), restarts (batched "
+                             "restarts), answer (one restart to a converged answer); default all")
 
 
 def frames_for(size: tuple[int, int], n_frames: int) -> tuple[np.ndarray, float]:
@@ -210,6 +215,60 @@ def converge(task: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+ANSWER = {"n_frames": 519, "size": 50, "init": {"g0": 0.5, "g1": 0.5}, "truth": {"g0": 4.0016, "g1": 0.08},
+          "bounds": {"g0": 0.005, "g1": 0.10}, "target_s": 5.0, "repeats": 3}
+ANSWER_QUICK = {**ANSWER, "n_frames": 60, "size": 16, "repeats": 1, "max_steps": 30}
+
+
+def one_answer(task: dict[str, Any]) -> dict[str, Any]:
+    """One restart of fitode.fit on the paper's intensity video from the paper's default start, to
+    its own stopping rule: wall time of the call (imports done before), steps, and from which step
+    the constants stayed inside the bounds for good."""
+    import fitode
+    import fitode.api  # noqa: F401  (imports are not the fit's time)
+    import fitode.train.trainer  # noqa: F401
+    from fitode.synth import paper_video
+
+    v = paper_video("intensity", n_frames=task["n_frames"], dt=0.2, size=task["size"])
+    opts = {"max_steps": task["max_steps"]} if task.get("max_steps") else {}
+    t0 = time.perf_counter()
+    res = fitode.fit(v.frames, v.dt, eq=EQUATION, restarts=1, init=task["init"], progress=False, **opts)
+    wall = time.perf_counter() - t0
+    run = res.runs[0]
+    inside = np.ones(len(run.history.step), dtype=bool)
+    for name, bound in task["bounds"].items():
+        series = np.asarray(run.history.constants[name])
+        inside &= np.abs(series / task["truth"][name] - 1) < bound
+    outside = np.flatnonzero(~inside)
+    good_from = None
+    if len(inside) and inside[-1]:
+        good_from = int(run.history.step[outside[-1] + 1 if len(outside) else 0])
+    return {"wall_s": wall, "steps": run.steps, "stop_reason": run.stop_reason, "good_from": good_from,
+            "estimate": {k: e.value for k, e in res.parameters.items()}, "verdict": res.verdicts["g0"]["verdict"],
+            "loop_s": run.wall_s, "load_after": round(os.getloadavg()[0], 2)}
+
+
+def answer_table(rows: list[dict[str, Any]], task: dict[str, Any]) -> str:
+    truth = task["truth"]
+    out = [f"one restart to the answer: {task['n_frames']} frames at {task['size']}x{task['size']}, from "
+           f"g0 = g1 = {task['init']['g0']}, fitode.fit(restarts=1), each in a fresh process",
+           "repeat  wall s  steps  stop       inside from  g0 error  g1 error  verdict   load (1 min)"]
+    for i, r in enumerate(rows):
+        e = r["estimate"]
+        out.append(f"{i + 1:>6}  {r['wall_s']:>6.2f}  {r['steps']:>5}  {r['stop_reason']:<9}  "
+                   f"{'never' if r['good_from'] is None else r['good_from']:>11}  "
+                   f"{100 * (e['g0'] / truth['g0'] - 1):>+7.2f}%  {100 * (e['g1'] / truth['g1'] - 1):>+7.1f}%  "
+                   f"{r['verdict']:<8}  {r['load_after']}")
+    best = min(rows, key=lambda r: r["wall_s"])
+    e = best["estimate"]
+    met = (best["stop_reason"] == "converged" and best["wall_s"] <= task["target_s"]
+           and all(abs(e[k] / truth[k] - 1) < b for k, b in task["bounds"].items()))
+    out.append(f"target (stopped by its own rule, g0 within {100 * task['bounds']['g0']:g}% and g1 within "
+               f"{100 * task['bounds']['g1']:g}%, at most {task['target_s']:g} s): {'MET' if met else 'NOT MET'} "
+               f"(fastest {best['wall_s']:.2f} s)")
+    return "\n".join(out)
+
+
 def time_restarts(task: dict[str, Any]) -> list[dict[str, Any]]:
     """ms per step of the batched loop for each restart count (and device), interleaved."""
     import torch
@@ -297,8 +356,9 @@ def run(args: argparse.Namespace) -> int:
         bc.check_positive(value, flag)
     threads = args.threads or (1 if args.quick else 2)  # a smoke test on a busy CI machine: 1
     t0 = time.perf_counter()
+    part = getattr(args, "part", "all")
     rows, ratios = [], []
-    for label, size in cfg["sizes"].items():
+    for label, size in (cfg["sizes"].items() if part in ("all", "encodings") else ()):
         base = {"size": size, "n_frames": cfg["n_frames"], "batch_windows": args.batch_windows}
         bc.progress(f"speed {label}: step times ({cfg['reps']} alternating steps per mode) ...")
         steps = bc.run_isolated(time_steps, {**base, "reps": cfg["reps"]}, threads=threads)
@@ -327,17 +387,27 @@ def run(args: argparse.Namespace) -> int:
                        "peak_rss": pw["peak_rss_mb"] / pf["peak_rss_mb"],
                        "rss_rise": pw["rss_rise_mb"] / pf["rss_rise_mb"] if pf["rss_rise_mb"] > 0 else math.nan})
     restart_rows = []
-    for label, size in cfg["sizes"].items():
+    for label, size in (cfg["sizes"].items() if part in ("all", "restarts") else ()):
         bc.progress(f"speed {label}: batched restarts {', '.join(map(str, cfg['restarts']))} ...")
         got = bc.run_isolated(time_restarts, {"size": size, "n_frames": cfg["n_frames"], "restarts": cfg["restarts"],
                                               "steps": cfg["restart_steps"], "rounds": cfg["rounds"]}, threads=threads)
         restart_rows += [{"size": label, **r} for r in got]
+    answer = ANSWER_QUICK if args.quick else ANSWER
+    answer_rows = []
+    for i in range(answer["repeats"] if part in ("all", "answer") else 0):
+        bc.progress(f"speed: one restart to the answer, repeat {i + 1} of {answer['repeats']} ...")
+        answer_rows.append(bc.run_isolated(one_answer, answer, threads=threads))
     wall = time.perf_counter() - t0
     machine = bc.machine_info()
-    print(table(rows))
-    print()
-    print(restart_table(restart_rows))
-    print()
+    if rows:
+        print(table(rows))
+        print()
+    if restart_rows:
+        print(restart_table(restart_rows))
+        print()
+    if answer_rows:
+        print(answer_table(answer_rows, answer))
+        print()
     for q in ratios:
         print(f"{q['size']}: per-window / per-frame = {q['step']:.1f}x per step (min; median {q['step_median']:.1f}x, "
               f"CPU {q['step_cpu']:.1f}x), {q['epoch']:.1f}x per epoch, {q['converge']:.1f}x to converge, "
@@ -352,7 +422,8 @@ def run(args: argparse.Namespace) -> int:
               "settings": {"n_frames": cfg["n_frames"], "sizes": {k: list(v) for k, v in cfg["sizes"].items()},
                            "reps": cfg["reps"], "threads": threads, "batch_windows": args.batch_windows,
                            "memory_steps": MEMORY_STEPS},
-              "rows": rows, "ratios": ratios, "restart_rows": restart_rows, "wall_s": wall, "machine": machine}
+              "rows": rows, "ratios": ratios, "restart_rows": restart_rows, "answer_rows": answer_rows,
+              "answer_settings": answer, "wall_s": wall, "machine": machine}
     path = bc.write_record(record, args.out, "speed")
     print(f"wrote {path}")
     return 0

@@ -173,6 +173,34 @@ class PhysicsBlock(nn.Module):
                 if rep.kind == "identity":
                     getattr(self, "scale_" + self._param_attr[name][len("const_"):]).copy_(torch.tensor(scales))
 
+    @torch.no_grad()
+    def follow_scales(self) -> dict[str, torch.Tensor]:
+        """Grow each restart's lr scale of an unbounded constant to follow its value (restarts only).
+
+        The paper's rule fixes the step from the start's magnitude, so a constant started at 0.5
+        climbs to 4 at 0.005 per step. Once |value| has grown past the next power of ten, its scale
+        becomes that power (never smaller than the start's, so a constant on its way through zero
+        keeps its pace). The raw parameter is divided by the growth so the value stays put.
+        Returns {name: (R,) growth factor} for the constants whose scale grew (for the optimiser's
+        moments), empty when none did.
+        """
+        grown: dict[str, torch.Tensor] = {}
+        if self.restarts is None:
+            return grown
+        for name, rep in self._reparams.items():
+            if rep.kind != "identity":
+                continue
+            u = self._param(name)
+            scale = getattr(self, "scale_" + self._param_attr[name][len("const_"):])
+            mag = (u * scale).abs().clamp_min(1e-30)
+            target = torch.where(torch.isfinite(mag), 10.0 ** torch.floor(torch.log10(mag)), scale)
+            factor = torch.clamp(target / scale, min=1.0)
+            if bool((factor > 1).any()):
+                u.div_(factor)
+                scale.mul_(factor)
+                grown[name] = factor
+        return grown
+
     def bounds(self, name: str) -> tuple[float | None, float | None]:
         self._param(name)
         return self._reparams[name].lo, self._reparams[name].hi

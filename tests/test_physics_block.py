@@ -108,6 +108,38 @@ def test_default_inits_and_lr_scales():
     assert block.lr_scale("b") == 1.0 and block.constants()["b"].item() == pytest.approx(4.0)
 
 
+def test_lr_scale_follows_a_growing_value_and_never_shrinks():
+    from fitode.train.optim import BatchedAdam
+    block = PhysicsBlock(parse("x'' = -a*x - b*x'"), {"b": ParamSpec(min=0.0)}, restarts=3)
+    block.set_constants({"a": [0.5, 0.5, -0.3]})
+    u = block.param_groups()[0]["params"][0]
+    opt = BatchedAdam([{"params": [u], "lr": 0.05, "name": "a"}], 3)
+    assert block.follow_scales() == {}  # still inside the starts' decade
+    block.set_constants({"a": [0.5, 0.5, -0.3]})
+    with torch.no_grad():
+        u.copy_(torch.tensor([42.0, 0.5, -0.3]))  # restart 0 climbed to 4.2 (raw u is value/0.1)
+    before = block.constants()["a"].clone()
+    (block.constants()["a"] ** 2).sum().backward()
+    opt.step(torch.ones(3, dtype=torch.bool))
+    moved = (block.constants()["a"] - before).detach().abs()
+    assert moved.tolist() == pytest.approx([0.005, 0.005, 0.005], rel=1e-4)  # lr 0.05 x scale 0.1 each
+    now = block.constants()["a"].detach().clone()
+    grown = block.follow_scales()
+    assert grown["a"].tolist() == [10.0, 1.0, 1.0]  # only the restart that passed 1 grows, to scale 1
+    torch.testing.assert_close(block.constants()["a"].detach(), now)  # the values do not move
+    opt.rescaled(u, grown["a"])
+    opt.zero_grad()
+    (block.constants()["a"] ** 2).sum().backward()
+    opt.step(torch.ones(3, dtype=torch.bool))
+    moved = (block.constants()["a"] - now).detach().abs()
+    # Adam's second step is near lr (the gradient changed a little): ten times the old pace
+    assert moved[0].item() == pytest.approx(0.05, rel=2e-2)
+    assert moved[1:].tolist() == pytest.approx([0.005, 0.005], rel=2e-2)
+    with torch.no_grad():
+        u[0] = 0.001  # the value falls back near zero: the scale stays where it grew to
+    assert block.follow_scales() == {}
+
+
 def test_bounds_hold_under_any_optimiser_step():
     block = _block("x'' = -k/m*x", {"k": ParamSpec(init=2.0, min=0.0), "m": ParamSpec(init=1.0, min=0.5, max=2.0)})
     opt = torch.optim.Adam(block.param_groups(lr=0.5))

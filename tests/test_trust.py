@@ -167,6 +167,22 @@ def test_stop_rule_settles_then_converges_and_never_on_a_moving_constant():
     assert not any(other_said)
 
 
+def test_a_loss_moving_far_below_the_floor_does_not_keep_a_settled_run_going():
+    config = TrainConfig(min_steps=0, horizon_warmup=0, patience=20, tol=1e-3)
+    tiny, big = History.for_constants(["k"]), History.for_constants(["k"])
+    rule, other = StopRule(config), StopRule(config)
+    said, other_said = [], []
+    for step in range(1, 201):
+        falling = 0.97 ** step  # the loss still drops by half every 23 steps
+        tiny.append(step, 1e-6 * falling, 1e-6 * falling, 0.0, {"k": 2.0})
+        big.append(step, 0.1 * falling, 0.1 * falling, 0.0, {"k": 2.0})
+        if step % 10 == 0:
+            said.append(rule.update(step, tiny))
+            other_said.append(other.update(step, big))
+    assert "converged" in said
+    assert not any(other_said)  # a loss of that size still falling is no plateau
+
+
 # --------------------------------------------------------------------------- option checks
 @pytest.mark.parametrize("options,word", [
     ({"restarts": 0}, "restarts"), ({"max_steps": -1}, "max_steps"), ({"encoder": "foo"}, "encoder"),

@@ -59,7 +59,7 @@ class TrainConfig:
     encoder: str = "auto"
     gauge: bool = True
     tol: float = 1e-3
-    patience: int = 100
+    patience: int = 50
     horizon_warmup: int = 200
     settle_factor: float = 0.1
     selection_factor: float = 1.5

@@ -88,7 +88,10 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
     gauge.enter_domain(encode_all(encoder, frames))
 
     groups = [{"params": list(encoder.parameters()), "lr": config.lr, "name": "encoder"}]
+    const_params = {}
     for g in block.param_groups(lr=config.const_lr):
+        if g["kind"] == "constant":
+            const_params[g["name"]] = g["params"][0]
         # per-window initial derivatives move with the encoder's latents, not at a constant's pace
         lr = config.lr * 10 if g["kind"] == "initial_state" else g["lr"]
         groups.append({"params": g["params"], "lr": lr, "name": g["name"]})
@@ -124,6 +127,8 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
             elif verdict == "converged":
                 active[r] = False
                 rec.converged, rec.stop_reason = True, "converged"
+        for name, factor in block.follow_scales().items():
+            opt.rescaled(const_params[name], factor)
         if bar is not None:
             bar.update(step - bar.n)
             bar.set_postfix_str(_postfix(records, on))

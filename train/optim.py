@@ -40,6 +40,16 @@ class BatchedAdam:
         return ok
 
     @torch.no_grad()
+    def rescaled(self, p: torch.Tensor, factor: torch.Tensor) -> None:
+        """p was divided by factor (R,), so its gradients grow by factor: carry Adam's moments into
+        the new units (m by factor, v by its square), so the gradients seen so far keep their say."""
+        m, v = self.state[id(p)]
+        shape = (self.restarts,) + (1,) * (p.dim() - 1)
+        f = factor.to(p.dtype).reshape(shape)
+        m.mul_(f)
+        v.mul_(f * f)
+
+    @torch.no_grad()
     def step(self, active: torch.Tensor) -> None:
         """One Adam step for the restarts where `active` (R,) is True; the others do not move at all."""
         b1, b2 = self.betas
