@@ -28,7 +28,8 @@ def fit(frames, dt: float, *, eq: str | None = None, system: str | OdeSystem | N
     The equation is given as text (eq), a shipped system name or an OdeSystem (system), or an
     equation file (eq_file). const fixes constants, free frees known ones, init sets starting
     values for every restart, prior overrides the equation file's (mean, std). observe is the
-    observation model (a name or a fitode.train.observe.ObservationModel; default "any").
+    observation model: "auto" (None: chosen from the equation and the frames), "any", "brightness", or a
+    fitode.train.observe.ObservationModel.
     options: any TrainConfig field (restarts, max_steps, window, integrator, substeps, encoder,
     use_kl, lr, const_lr, batch_windows, seed, device, threads, ...). Every bad option raises a
     fitode.ConfigError naming it, before any work.

@@ -111,6 +111,31 @@ def report_lines(system, spec, report) -> list[str]:
         body.initial_indent = body.subsequent_indent = indent
         out += body.wrap(stripped)
     out += gauge_lines(system)
+    out += observation_lines(system, spec.observe if spec is not None else None)
+    return out
+
+
+_REMOVES = {
+    "brightness": "the pixels are decoded from sRGB to linear light and read linearly: no bend of the latent "
+                  "(I -> I**p, which would multiply a decay rate by p) and no transfer curve (about p = 1/2.2)",
+    "any": "a free encoder: the latent may be any function of the pixels; the gauge fixes only its scale and offset",
+}
+
+
+def observation_lines(system, named: str | None) -> list[str]:
+    """Which observation model a fit of this equation uses and the degeneracies it removes."""
+    if named is not None and named != "auto":
+        text = [f"{named} (from the equation file): {_REMOVES[named]}"]
+    else:
+        from fitode.eqparse.identify import power_symmetric
+        if not power_symmetric(system):
+            text = [f"auto -> any, as no constant follows a bend of the latent: {_REMOVES['any']}"]
+        else:
+            text = ["auto -> brightness where the frames brighten or dim as one: " + _REMOVES["brightness"],
+                    "where the change moves instead: any, with the linear encoder, which removes the bend only"]
+    out = ["observation (what the camera measures; --observe overrides):"]
+    for para in text:
+        out += textwrap.wrap(para, width=_WIDTH, initial_indent="  ", subsequent_indent="    ")
     return out
 
 

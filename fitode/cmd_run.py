@@ -25,6 +25,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                          "to report scale-dependent constants in physical units")
 
     tr = add_training_arguments(p)
+    from fitode.train.config import OBSERVE_CHOICES
+    tr.add_argument("--observe", choices=OBSERVE_CHOICES, default=None,
+                    help="what the camera measures about the state: brightness (linear in the light, decoded "
+                         "from sRGB; see --light), any (a free encoder, the paper's), or auto (chosen from the "
+                         "equation and a look at the frames, and printed; default: the equation file's, else auto)")
     tr.add_argument("--train-fraction", type=fraction, metavar="F", default=None,
                     help="train on the first fraction of the frames; the rest shows extrapolation (default 1)")
 
@@ -71,6 +76,6 @@ def _run(args, const, init, say):
         args.video, args.out, eq=args.eq, eq_file=args.eq_file, system=args.system, const=const,
         free=tuple(args.free), init=init or None, prior=args.prior, fps=args.fps, start=args.start,
         end=args.end, roi=args.roi, size=args.size, color=args.color, stride=args.stride, mask=args.mask,
-        calibrate=args.calibrate,
+        calibrate=args.calibrate, observe=args.observe,
         train_fraction=args.train_fraction if args.train_fraction is not None else DEFAULT_TRAIN_FRACTION,
         progress=not args.quiet and sys.stderr.isatty(), log=None if args.quiet else say, **training_options(args))

@@ -6,6 +6,7 @@ Format (every key but `name` and `equation` optional):
     description = "..."
     equation = "theta'' = -g/L*sin(theta) - zeta*theta'"
     stride = 2                      # suggested frame stride
+    observe = "brightness"          # what the camera measures (auto, any, brightness)
     [constants]                     # fixed at these values
     g = 9.80665
     [parameters]                    # learnable constants
@@ -33,7 +34,7 @@ from fitode.errors import FitodeError
 from fitode.options import parse_names
 
 _PACKAGE = "fitode.equations"
-_TOP_KEYS = {"name", "description", "equation", "constants", "parameters", "prior", "stride"}
+_TOP_KEYS = {"name", "description", "equation", "constants", "parameters", "prior", "stride", "observe"}
 _PARAM_KEYS = {"init", "min", "max", "unit"}
 _PRIOR_KEYS = {"mean", "std"}
 
@@ -49,6 +50,7 @@ class EquationSpec:
     prior_mean: float = 0.0
     prior_std: float = 1.0
     stride: int | None = None
+    observe: str | None = None
     description: str = ""
     path: str | None = None
 
@@ -129,8 +131,13 @@ def spec_from_dict(data: Mapping, where: str, path: str | None = None) -> Equati
     if stride is not None and (isinstance(stride, bool) or not isinstance(stride, int) or stride < 1):
         raise FitodeError(f"{where}: stride must be a positive whole number, got {stride!r}")
 
+    observe = data.get("observe")
+    from fitode.train.config import OBSERVE_CHOICES
+    if observe is not None and observe not in OBSERVE_CHOICES:
+        raise FitodeError(f"{where}: observe must be one of {', '.join(OBSERVE_CHOICES)}, got {observe!r}")
+
     spec = EquationSpec(name=data["name"].strip(), equation=data["equation"], constants=constants,
-                        parameters=parameters, prior_mean=mean, prior_std=std, stride=stride,
+                        parameters=parameters, prior_mean=mean, prior_std=std, stride=stride, observe=observe,
                         description=" ".join(description.split()), path=path)
     try:
         system = spec.parse()

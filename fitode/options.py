@@ -123,11 +123,13 @@ _TRAINING_HELP = {
     "integrator": (None, "ODE integrator"),
     "encoder": (None, "frame encoder: auto (linear for a single first-order linear equation, else mlp), "
                       "mlp (the paper's), cnn, or linear (an affine map of the frames: for decays, see README)"),
+    "light": (None, "how the brightness observation reads pixel values: srgb (decoded to linear light, as video "
+                    "stores them) or linear (already proportional to light)"),
     "device": (None, "where to train"),
     "seed": ("N", "random seed"),
     "threads": ("N", "torch threads for the fit"),
 }
-TRAINING_FLAGS = ("restarts", "max_steps", "min_steps", "window", "integrator", "encoder", "device", "seed",
+TRAINING_FLAGS = ("restarts", "max_steps", "min_steps", "window", "integrator", "encoder", "light", "device", "seed",
                   "threads")
 
 
@@ -140,7 +142,8 @@ def add_training_arguments(parser: argparse.ArgumentParser, *, title: str = "tra
     """
     from fitode.train import config as cfg
 
-    names = {"integrator": cfg.INTEGRATOR_NAMES, "encoder": cfg.ENCODER_CHOICES, "device": cfg.DEVICE_NAMES}
+    names = {"integrator": cfg.INTEGRATOR_NAMES, "encoder": cfg.ENCODER_CHOICES, "device": cfg.DEVICE_NAMES,
+             "light": cfg.LIGHT_CHOICES}
     defaults = cfg.defaults()
     group = parser.add_argument_group(title)
     for name in fields:

@@ -43,7 +43,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
               free: Iterable[str] = (), init: Mapping[str, float] | None = None,
               prior: tuple[float, float] | None = None, fps: float | None = None, start: float | None = None,
               end: float | None = None, roi=None, size=None, color: bool = False, stride: int | str = "auto",
-              mask=None, calibrate: str | None = None, train_fraction: float = DEFAULT_TRAIN_FRACTION,
+              mask=None, calibrate: str | None = None, observe: str | None = None,
+              train_fraction: float = DEFAULT_TRAIN_FRACTION,
               progress: bool = False, log: Callable[[str], None] | None = print,
               **train_options) -> RunOutcome:
     """Fit one video and write its output folder; see the module docstring.
@@ -92,8 +93,12 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
         from fitode.calibrate import check_times
         check_times(points, t0, t0 + (n_frames - 1) * clip.dt)
 
-    settings = {**config.as_dict(), "train_fraction": train_fraction}
-    for line in rep.understanding_lines(ode, spec, analysis, clip, n_train, settings):
+    from fitode.api import as_frames
+    from fitode.train.observe import resolve_observation
+    observation = resolve_observation(observe or (spec.observe if spec is not None else None), ode,
+                                      as_frames(clip.frames[:n_train]), config.light)
+    settings = {**config.as_dict(), "train_fraction": train_fraction, "observe": observation.name}
+    for line in rep.understanding_lines(ode, spec, analysis, clip, n_train, settings, observation):
         say(line)
 
     folder = _make_out_dir(target, Path(str(video)).stem)
@@ -109,7 +114,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
     from fitode.api import fit
     try:
         result = fit(clip.frames, clip.dt, system=ode, params=params, init=init, prior=use_prior,
-                     train_fraction=train_fraction, callback=recorder, progress=progress, **train_options)
+                     train_fraction=train_fraction, callback=recorder, progress=progress, observe=observation,
+                     **train_options)
     except KeyboardInterrupt:
         _write_partial(report, recorder, folder, "incomplete", "interrupted (Ctrl-C) during training", plots_done)
         say(f"interrupted: partial results in {folder}")

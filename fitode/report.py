@@ -81,7 +81,8 @@ def scale_dependent(analysis: Mapping | None, name: str) -> bool:
 
 
 # ----------------------------------------------------------------------------- before training
-def understanding_lines(ode, spec, analysis, clip, n_train: int, settings: Mapping[str, Any]) -> list[str]:
+def understanding_lines(ode, spec, analysis, clip, n_train: int, settings: Mapping[str, Any],
+                        observation=None) -> list[str]:
     """What fitode understood, printed before it spends minutes training."""
     from fitode import __version__
     lines = [f"fitode {__version__}"]
@@ -105,10 +106,14 @@ def understanding_lines(ode, spec, analysis, clip, n_train: int, settings: Mappi
         from fitode.cmd_check import gauge_lines
         lines += gauge_lines(ode)
     from fitode.train.config import TrainConfig, resolve_encoder
-    _, encoder = resolve_encoder(TrainConfig(encoder=settings["encoder"]), ode)
+    _, encoder = resolve_encoder(TrainConfig(encoder=settings["encoder"]), ode, observation)
     lines.append(f"training: {settings['restarts']} restarts, up to {settings['max_steps']} steps, window "
                  f"{settings['window']} frames, {settings['integrator']} integrator, {settings['device']}, "
                  f"seed {settings['seed']}")
+    if observation is not None:
+        lines.append(f"observation: {observation.reason}")
+        if getattr(observation, "light", None) == "srgb":
+            lines.append("light: pixel values decoded from sRGB to linear light (--light linear if they already are)")
     lines.append(f"encoder: {encoder}")
     return lines
 

@@ -14,6 +14,9 @@ from fitode.errors import ConfigError
 
 ENCODER_NAMES = ("mlp", "cnn", "linear")
 ENCODER_CHOICES = ("auto",) + ENCODER_NAMES  # auto: linear where a free encoder could report any rate
+# what the camera measures about the state (train/observe.py); auto: chosen from the equation and the frames
+OBSERVE_CHOICES = ("auto", "any", "brightness")
+LIGHT_CHOICES = ("srgb", "linear")  # how the brightness observation reads pixel values (fitode.video.light)
 INTEGRATOR_NAMES = ("rk4", "symplectic", "euler")
 INTEGRATOR_ALIASES = {"paper": "symplectic", "semi-implicit": "symplectic", "semi_implicit": "symplectic",
                       "explicit-euler": "euler"}
@@ -32,7 +35,9 @@ class TrainConfig:
     of the latent. integrator, substeps, initial_state: how the physics block rolls out (see
     fitode.codegen). encoder: the frame encoder's architecture; "auto" picks linear for a single
     first-order linear equation (a free encoder could report any power of its state, which
-    decays at any rate) and mlp (the paper's) otherwise. gauge: learn the scale and
+    decays at any rate) and mlp (the paper's) otherwise, or what the observation model reads
+    with. light: how the brightness observation reads pixel values, "srgb" (decoded to linear
+    light, as video stores them) or "linear" (already proportional to light). gauge: learn the scale and
     offset between latent and physical state where the equation needs them (off: the paper's
     latent = state). tol, patience, settle_factor: the stopping rule (train/stopping.py).
     horizon_warmup: steps over which the rollout grows to the whole window. selection_factor:
@@ -57,6 +62,7 @@ class TrainConfig:
     substeps: int = 1
     initial_state: str = "difference"
     encoder: str = "auto"
+    light: str = "srgb"
     gauge: bool = True
     tol: float = 1e-3
     patience: int = 50
@@ -93,6 +99,7 @@ class TrainConfig:
                                   INTEGRATOR_NAMES)
         self.initial_state = _choice("initial_state", self.initial_state, INITIAL_STATE_NAMES)
         self.encoder = _choice("encoder", self.encoder, ENCODER_CHOICES)
+        self.light = _choice("light", self.light, LIGHT_CHOICES)
         device = str(self.device)
         if device.split(":")[0] not in DEVICE_NAMES:
             raise ConfigError(f"unknown device {self.device!r}; use cpu or cuda")
@@ -114,8 +121,14 @@ class TrainConfig:
         return d
 
 
-def resolve_encoder(config: "TrainConfig", system) -> tuple["TrainConfig", str]:
-    """The architecture "auto" stands for with this equation, and why (one line)."""
+def resolve_encoder(config: "TrainConfig", system, observation=None) -> tuple["TrainConfig", str]:
+    """The architecture "auto" stands for with this equation and observation model, and why (one line)."""
+    needed = getattr(observation, "architecture", None)
+    if needed is not None:
+        if config.encoder not in ("auto", needed):
+            raise ConfigError(f"the {observation.name} observation reads the pixels with the {needed} encoder; "
+                              f"encoder {config.encoder!r} does not apply (observe 'any' for a free encoder)")
+        return replace(config, encoder=needed), f"{needed} (the {observation.name} observation reads the pixels linearly)"
     if config.encoder != "auto":
         return config, f"{config.encoder} (as asked)"
     from fitode.eqparse.identify import power_symmetric  # sympy: only when a fit is set up

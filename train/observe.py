@@ -19,13 +19,15 @@ layer absorbs the projection) at a fraction of the cost; a cnn reads the project
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
 
 from fitode.errors import ConfigError
+from fitode.video.light import srgb_to_linear
 
+from .config import LIGHT_CHOICES, OBSERVE_CHOICES
 from .encoders import BatchedEncoder, normalise_frames
 
 SUBSPACE_GAP = 3.0
@@ -48,9 +50,11 @@ class ObservationModel:
     """The paper's observation: any function of the pixels the encoder can learn."""
 
     name = "any"
+    architecture: str | None = None  # the encoder it needs; None: any (--encoder decides)
 
     def __init__(self, subspace: bool = True):
         self.subspace = subspace
+        self.reason = ""  # one line: why this model (set by resolve_observation)
 
     def prepare(self, frames: torch.Tensor, architecture: str = "mlp", fit_frames: int | None = None) -> Prepared:
         """Raw float frames (T, C, H, W) -> what the encoder reads. The principal components come
@@ -114,14 +118,94 @@ def _th(k: int) -> str:
     return {1: "st", 2: "nd", 3: "rd"}.get(k if k < 20 else k % 10, "th")
 
 
-OBSERVATIONS = {"any": ObservationModel}
+class BrightnessObservation(ObservationModel):
+    """The camera measures light: the latent is affine in the pixels' linear light.
+
+    Video stores sRGB-encoded values (about I**(1/2.2)); a latent linear in them reads a decay
+    rate 2.2 times too slow. This model decodes to linear light first (light="srgb", the default;
+    "linear" for frames already proportional to light: raw sensor data, a synthetic rendering),
+    then reads the signal subspace with a linear encoder, which can neither bend the latent (an
+    MLP could report I**p, decaying at p times the rate) nor draw it out of pixel noise.
+    """
+
+    name = "brightness"
+    architecture = "linear"
+
+    def __init__(self, light: str = "srgb", subspace: bool = True):
+        super().__init__(subspace)
+        if light not in LIGHT_CHOICES:
+            raise ConfigError(f"unknown light {light!r}; choose one of {', '.join(LIGHT_CHOICES)}")
+        self.light = light
+
+    def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
+        out = super().prepare(self.decoded(frames), architecture, fit_frames)
+        how = "decoded from sRGB to linear light" if self.light == "srgb" else "read as linear light (light=linear)"
+        return replace(out, note=f"pixels {how}; {out.note}")
+
+    def decoded(self, frames: torch.Tensor) -> torch.Tensor:
+        if self.light == "linear":
+            return frames
+        lo, hi = float(frames.min()), float(frames.max())
+        if lo < 0 or hi > 255:
+            raise ConfigError(f"the brightness observation decodes sRGB pixel values in [0, 1] or 0..255, but these "
+                              f"run from {lo:g} to {hi:g}; give light='linear' (--light linear) for other units")
+        return srgb_to_linear(frames / 255.0 if hi > 1.0 else frames)
 
 
-def observation_model(spec: str | ObservationModel | None) -> ObservationModel:
-    if spec is None:
-        return ObservationModel()
+OBSERVATIONS = {"any": ObservationModel, "brightness": BrightnessObservation}
+assert ("auto",) + tuple(OBSERVATIONS) == OBSERVE_CHOICES, "train/config.py lists the models the CLI offers"
+
+# The auto choice: of the change the frames' first principal component carries, the share whose
+# sign agrees with the whole (energy-weighted). A lamp that dims darkens every pixel it lights
+# (near 1); an object that moves darkens where it leaves and lightens where it arrives (near 0).
+ONE_SIGNED = 0.8
+LOOK_FRAMES = 256
+
+
+def resolve_observation(spec: str | ObservationModel | None, system, frames: torch.Tensor | None = None,
+                        light: str = "srgb") -> ObservationModel:
+    """The observation model a fit uses, with its reason: an instance as given, a name, or "auto"
+    (None): brightness for a single first-order linear equation whose frames brighten or dim as
+    one, any otherwise."""
     if isinstance(spec, ObservationModel):
+        spec.reason = spec.reason or f"{spec.name} (as given)"
         return spec
-    if spec not in OBSERVATIONS:
-        raise ConfigError(f"unknown observation model {spec!r}; choose one of {', '.join(OBSERVATIONS)}")
-    return OBSERVATIONS[spec]()
+    name = "auto" if spec is None else spec
+    if name not in OBSERVE_CHOICES:
+        raise ConfigError(f"unknown observation model {name!r}; choose one of {', '.join(OBSERVE_CHOICES)}")
+    if name != "auto":
+        model = BrightnessObservation(light) if name == "brightness" else ObservationModel()
+        model.reason = f"{name} (as asked)"
+        return model
+    from fitode.eqparse.identify import power_symmetric  # sympy: only when a fit is set up
+    if not power_symmetric(system):
+        model = ObservationModel()
+        model.reason = "any (auto: the paper's free encoder; the equation's constants do not follow a bend of the latent)"
+        return model
+    share = one_signed_share(frames) if frames is not None else 0.0
+    if share >= ONE_SIGNED:
+        model = BrightnessObservation(light)
+        model.reason = (f"brightness (auto: a single first-order linear equation, and the frames brighten or dim as "
+                        f"one: {share:.0%} of the change has one sign)")
+    else:
+        model = ObservationModel()
+        model.reason = (f"any (auto: the change has both signs, {share:.0%} one-signed, as where something moves; "
+                        "the linear encoder keeps the rate)")
+    return model
+
+
+@torch.no_grad()
+def one_signed_share(frames: torch.Tensor) -> float:
+    """How much of the frames' main change has one sign (0.5..1; see ONE_SIGNED), from at most
+    LOOK_FRAMES frames spread over the clip."""
+    step = max(1, frames.shape[0] // LOOK_FRAMES)
+    sub = frames[::step]
+    flat = sub.reshape(sub.shape[0], -1).double()
+    centred = flat - flat.mean(dim=0, keepdim=True)
+    if centred.shape[0] < 2 or float(centred.abs().max()) == 0:
+        return 0.0
+    _, vecs = torch.linalg.eigh(centred @ centred.T)
+    v = centred.T @ vecs[:, -1]  # the first component's pixel map (its overall sign is arbitrary)
+    energy = v * v
+    positive = float(energy[v > 0].sum())
+    return max(positive, float(energy.sum()) - positive) / float(energy.sum())

@@ -20,7 +20,7 @@ from fitode.errors import TrainingError
 from . import interrupts
 from .config import TrainConfig, resolve_encoder
 from .loop import Callback, StepInfo, Trained, encode_all, train_restarts
-from .observe import ObservationModel, observation_model
+from .observe import ObservationModel, resolve_observation
 from .result import Estimate, FitResult
 from .score import dominant_period, separation_score
 from .selection import select_runs
@@ -69,8 +69,8 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
                callback: Callback | None = None, progress: bool = False,
                observe: str | ObservationModel | None = None, meta: dict | None = None) -> FitResult:
     """Every restart on raw float frames (T, C, H, W); training uses the first train_frames."""
-    observation = observation_model(observe)
-    config, encoder_reason = resolve_encoder(config, system)
+    observation = resolve_observation(observe, system, frames, config.light)
+    config, encoder_reason = resolve_encoder(config, system, observation)
     device = torch.device(config.device)
     n_total = frames.shape[0]
     n_train = n_total if train_frames is None else int(train_frames)
@@ -132,6 +132,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         states=list(system.states), equation=system.text, fixed=dict(system.fixed),
         settings=config.as_dict(), selection_factor=config.selection_factor,
         meta={**(meta or {}), "interrupted": interrupted, "observation": observation.name,
+              "observation_reason": observation.reason,
               "subspace": prepared.note, "rank": prepared.rank, "encoder": encoder_reason,
               "gauge": {s: g.describe() for s, g in plan.items()}},
         verdicts={n: v.to_dict() for n, v in verdicts.items()},

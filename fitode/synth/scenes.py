@@ -3,7 +3,8 @@ filming five experiments at 60 fps.
 
 Each frame is drawn in linear RGB (textured seeded background, lit and shaded objects, soft
 shadows, anti-aliased at 4x supersampling), then passed through a camera model: lens
-vignetting, mild optical blur, signal-dependent sensor noise, 8-bit quantisation and a JPEG
+vignetting, mild optical blur, signal-dependent sensor noise, the sRGB transfer curve that
+video stores (fitode.video.light), 8-bit quantisation and a JPEG
 round trip (a lossy codec on every frame). Frames are uint8 RGB (T, H, W, 3).
 
 The dynamics are the physics, not a fit target's approximation:
@@ -15,8 +16,9 @@ The dynamics are the physics, not a fit target's approximation:
   mu = 0.21; the block starts near the top, already released t0 seconds before frame 0.
   The truth is alpha (radians) and mu, the shipped file's constants; only their combination
   a (meta["physical"]["a"]) is measurable.
-- led: I' = -gamma (I - c) with the dark level c = 0, exact; the sensor is linear (no gamma curve, nothing saturates), so
-  the pixel values are affine in the LED's brightness; gamma = 2.3, 0.92, 0.46 /s.
+- led: I' = -gamma (I - c) with the dark level c = 0, exact; nothing saturates, so the light is
+  affine in the LED's brightness, and the pixel values are its sRGB encoding (a latent linear in
+  them measures about I**(1/2.2)); gamma = 2.3, 0.92, 0.46 /s.
 - free_fall: a ball dropped h0 = 0.20 m below a camera looking straight down; its distance
   d = h0 + g t^2 / 2 (d'' = g) and its apparent radius r0 f / d (the dataset's model,
   f = 1451 px/m at 1920 px wide, scaled with the width here); r0 = 0.0335, 0.06, 0.10 m.
@@ -35,6 +37,7 @@ import numpy as np
 from fitode.errors import FitodeError
 from fitode.synth import render as R
 from fitode.synth.video import SynthVideo
+from fitode.video.light import linear_to_srgb
 
 G = 9.80665
 
@@ -125,7 +128,8 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
 
 
 class _Sensor:
-    """Linear RGB in [0, 1] -> what a camera records: blur, shot + read noise, 8 bits, JPEG.
+    """Linear RGB in [0, 1] -> what a camera records: blur, shot + read noise, the sRGB transfer
+    curve, 8 bits, JPEG.
 
     Gaussian draws dominate the cost of a frame, so every frame reads its noise from one
     seeded bank of three frames' worth at a random offset: each frame's noise is i.i.d.
@@ -149,7 +153,7 @@ class _Sensor:
             var += np.float32((0.008 * self.noise) ** 2)
             off = int(self.rng.integers(0, 2 * self.size))
             img = img + np.sqrt(var) * self.bank[off:off + self.size].reshape(self.shape)
-        u8 = np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        u8 = np.clip(linear_to_srgb(img) * 255.0 + 0.5, 0, 255).astype(np.uint8)
         return R.jpeg_roundtrip(u8, self.quality)
 
 
