@@ -48,6 +48,8 @@ def test_auto_picks_brightness_for_a_dimming_decay_and_any_for_motion_or_an_osci
     moving = resolve_observation("auto", decay, _frames("move"))
     assert type(moving) is ObservationModel and "both signs" in moving.reason
     assert type(resolve_observation(None, osc, _frames("dim"))) is ObservationModel
+    mlp = resolve_observation(None, decay, _frames("dim"), encoder="mlp")
+    assert type(mlp) is ObservationModel and "mlp encoder was asked for" in mlp.reason
     asked = resolve_observation("brightness", osc, None, light="linear")
     assert asked.light == "linear" and asked.reason == "brightness (as asked)"
     with pytest.raises(fitode.ConfigError, match="observation model 'size'"):

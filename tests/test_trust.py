@@ -212,11 +212,13 @@ def test_textured_noisy_pendulum_typed_with_the_sine(degrees, tol):
 
 
 @pytest.mark.slow
-def test_a_decay_gets_the_linear_encoder_and_a_one_way_mlp_fit_is_not_trusted():
+def test_a_decay_gets_the_brightness_observation_and_a_one_way_mlp_fit_is_not_trusted():
     v = render_equation("I' = -gamma*I", constants={"gamma": 0.5}, y0={"I": 1.0}, n_frames=100, dt=0.05,
                         mode="intensity", size=16, noise=0.01)
-    auto = fitode.fit(v.frames, v.dt, eq="I' = -gamma*I", restarts=2, max_steps=600, progress=False)
-    assert auto.settings["encoder"] == "linear" and "auto" in auto.meta["encoder"]
+    # this rendering's pixels are linear in I (no camera curve): light="linear"
+    auto = fitode.fit(v.frames, v.dt, eq="I' = -gamma*I", restarts=2, max_steps=600, light="linear", progress=False)
+    assert auto.settings["encoder"] == "linear" and auto.meta["observation"] == "brightness"
+    assert "auto" in auto.meta["observation_reason"]
     assert auto.verdicts["gamma"]["verdict"] == "trusted", auto.verdicts
     assert abs(auto.values["gamma"] - 0.5) / 0.5 < 0.08, auto.values
     mlp = fitode.fit(v.frames, v.dt, eq="I' = -gamma*I", encoder="mlp", restarts=2, max_steps=200, progress=False)

@@ -163,10 +163,10 @@ LOOK_FRAMES = 256
 
 
 def resolve_observation(spec: str | ObservationModel | None, system, frames: torch.Tensor | None = None,
-                        light: str = "srgb") -> ObservationModel:
+                        light: str = "srgb", encoder: str = "auto") -> ObservationModel:
     """The observation model a fit uses, with its reason: an instance as given, a name, or "auto"
     (None): brightness for a single first-order linear equation whose frames brighten or dim as
-    one, any otherwise."""
+    one, any otherwise (and wherever an encoder other than linear was asked for)."""
     if isinstance(spec, ObservationModel):
         spec.reason = spec.reason or f"{spec.name} (as given)"
         return spec
@@ -176,6 +176,10 @@ def resolve_observation(spec: str | ObservationModel | None, system, frames: tor
     if name != "auto":
         model = BrightnessObservation(light) if name == "brightness" else ObservationModel()
         model.reason = f"{name} (as asked)"
+        return model
+    if encoder not in ("auto", "linear"):
+        model = ObservationModel()
+        model.reason = f"any (auto: the {encoder} encoder was asked for)"
         return model
     from fitode.eqparse.identify import power_symmetric  # sympy: only when a fit is set up
     if not power_symmetric(system):

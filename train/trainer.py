@@ -69,7 +69,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
                callback: Callback | None = None, progress: bool = False,
                observe: str | ObservationModel | None = None, meta: dict | None = None) -> FitResult:
     """Every restart on raw float frames (T, C, H, W); training uses the first train_frames."""
-    observation = resolve_observation(observe, system, frames, config.light)
+    observation = resolve_observation(observe, system, frames, config.light, config.encoder)
     config, encoder_reason = resolve_encoder(config, system, observation)
     device = torch.device(config.device)
     n_total = frames.shape[0]
