@@ -54,11 +54,12 @@ def test_pendulum_length_from_video(tmp_path, capsys):
 
 def test_intensity_decay_rate_from_video(tmp_path, capsys):
     # A decay needs the linear encoder: an MLP can report I**p, which decays at p*gamma. The
-    # offset c lets a zero-mean latent decay towards the dark level (see led_decay.toml).
+    # offset c lets a zero-mean latent decay towards the dark level (see led_decay.toml). This
+    # glow's pixel values are linear in its brightness (no camera curve): --light linear.
     fps, n, gamma = 20.0, 120, 0.5
     video = write_mp4(tmp_path / "glow.mp4", render_glow(decay_values(n, fps, gamma), size=24), fps)
     out = tmp_path / "run"
-    code = main([str(video), "--system", "led_decay", "--encoder", "linear", "--restarts", "1",
+    code = main([str(video), "--system", "led_decay", "--light", "linear", "--restarts", "1",
                  "--max-steps", "800", "--stride", "1", "--out", str(out), "--quiet"])
     text = capsys.readouterr().out
     assert code == 0, text
