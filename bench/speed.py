@@ -63,7 +63,7 @@ FULL = {"n_frames": 270, "sizes": SIZES, "reps": 40, "max_steps": None, "restart
 QUICK = {"n_frames": 40, "sizes": {"16x28": (16, 28)}, "reps": 3, "max_steps": 8, "restarts": (1, 2),
          "restart_steps": 15, "rounds": 1}
 MEMORY_STEPS = 5
-PARTS = ("all", "encodings", "restarts", "answer")
+PARTS = ("all", "encodings", "restarts", "answer", "compile")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -75,7 +75,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="windows per step (default: TrainConfig's, all of them)")
     parser.add_argument("--part", choices=PARTS, default="all",
                         help="measure one part only: encodings (per-frame vs per-window), restarts (batched "
-                             "restarts), answer (one restart to a converged answer); default all")
+                             "restarts), answer (one restart to a converged answer), compile (torch.compile of the "
+                             "rollout against eager; not in all: its compilation alone takes about a minute); "
+                             "default all")
 
 
 def frames_for(size: tuple[int, int], n_frames: int) -> tuple[np.ndarray, float]:
@@ -269,6 +271,51 @@ def answer_table(rows: list[dict[str, Any]], task: dict[str, Any]) -> str:
     return "\n".join(out)
 
 
+def time_compile(task: dict[str, Any]) -> dict[str, Any]:
+    """The physics rollout (fwd + bwd, the part of a step that is thousands of tiny ops) eager and
+    under torch.compile: ms per call after warm-up, and the first compiled call's wall time."""
+    import torch
+
+    from fitode.codegen import PhysicsBlock
+    from fitode.eqparse import parse
+
+    block = PhysicsBlock(parse(EQUATION), {}, integrator="rk4", restarts=task["restarts"],
+                         n_windows=task["windows"], check_finite=False)
+    head = torch.randn(task["restarts"], task["windows"], block.n_context, 1, requires_grad=True)
+
+    def call(fn):
+        fn(head, task["window"], 0.2).sum().backward()
+
+    def per_call(fn, n=task["reps"]):
+        call(fn)
+        t0 = time.perf_counter()
+        for _ in range(n):
+            call(fn)
+        return (time.perf_counter() - t0) / n
+
+    out = {"eager_s": per_call(block)}
+    t0 = time.perf_counter()
+    try:
+        compiled = torch.compile(block)
+        call(compiled)
+        out["compile_s"] = time.perf_counter() - t0
+        out["compiled_s"] = per_call(compiled)
+    except Exception as exc:  # noqa: BLE001 - no compiler, an unsupported op: report it, do not fail the bench
+        out["error"] = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+    return out
+
+
+def compile_table(r: dict[str, Any], task: dict[str, Any]) -> str:
+    head = (f"torch.compile of the rollout ({task['windows']} windows of {task['window']} frames, "
+            f"{task['restarts']} restart(s), fwd + bwd)")
+    if "error" in r:
+        return f"{head}\neager {1e3 * r['eager_s']:.2f} ms; compile failed: {r['error']}"
+    saved = r["eager_s"] - r["compiled_s"]
+    pays = f"pays after {r['compile_s'] / saved:,.0f} calls" if saved > 0 else "never pays"
+    return (f"{head}\neager {1e3 * r['eager_s']:.2f} ms, compiled {1e3 * r['compiled_s']:.2f} ms, first compiled "
+            f"call {r['compile_s']:.1f} s: {pays} (one per step, one compile per window length)")
+
+
 def time_restarts(task: dict[str, Any]) -> list[dict[str, Any]]:
     """ms per step of the batched loop for each restart count (and device), interleaved."""
     import torch
@@ -397,6 +444,11 @@ def run(args: argparse.Namespace) -> int:
     for i in range(answer["repeats"] if part in ("all", "answer") else 0):
         bc.progress(f"speed: one restart to the answer, repeat {i + 1} of {answer['repeats']} ...")
         answer_rows.append(bc.run_isolated(one_answer, answer, threads=threads))
+    compile_task = {"restarts": 1, "windows": 500 if not args.quick else 20, "window": 20, "reps": 30 if not args.quick else 2}
+    compiled = None
+    if part == "compile":
+        bc.progress("speed: torch.compile of the rollout (about a minute to compile) ...")
+        compiled = bc.run_isolated(time_compile, compile_task, threads=threads)
     wall = time.perf_counter() - t0
     machine = bc.machine_info()
     if rows:
@@ -407,6 +459,9 @@ def run(args: argparse.Namespace) -> int:
         print()
     if answer_rows:
         print(answer_table(answer_rows, answer))
+        print()
+    if compiled is not None:
+        print(compile_table(compiled, compile_task))
         print()
     for q in ratios:
         print(f"{q['size']}: per-window / per-frame = {q['step']:.1f}x per step (min; median {q['step_median']:.1f}x, "
@@ -423,7 +478,7 @@ def run(args: argparse.Namespace) -> int:
                            "reps": cfg["reps"], "threads": threads, "batch_windows": args.batch_windows,
                            "memory_steps": MEMORY_STEPS},
               "rows": rows, "ratios": ratios, "restart_rows": restart_rows, "answer_rows": answer_rows,
-              "answer_settings": answer, "wall_s": wall, "machine": machine}
+              "answer_settings": answer, "compile": compiled, "wall_s": wall, "machine": machine}
     path = bc.write_record(record, args.out, "speed")
     print(f"wrote {path}")
     return 0

@@ -80,6 +80,9 @@ def test_speed_quick(tmp_path, capsys):
     assert pw["frames_encoded_per_step"] == pw["windows"] * 20 > pf["frames_encoded_per_step"] == 40
     assert pw["loss_diff"] < 1e-4
     assert all(_finite(q["step"], q["epoch"], q["converge"], q["peak_rss"]) for q in rec["ratios"])
+    (answer,) = rec["answer_rows"]  # one restart to the answer: the quick version stops at its step limit
+    assert answer["steps"] == 30 and answer["stop_reason"] == "max_steps" and _finite(answer["wall_s"])
+    assert "one restart to the answer" in out and "target" in out and "NOT MET" in out
 
 
 @pytest.mark.slow  # renders and fits videos: seconds even with --quick

@@ -125,6 +125,24 @@ def test_batched_restarts_equal_separate_runs():
         assert np.allclose(a.history.loss, b.history.loss, rtol=1e-3, atol=1e-7)
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
+def test_batched_restarts_on_cuda_match_the_cpu():
+    v = render_equation("x'' = -k*x - c*x'", constants={"k": 4.0, "c": 0.1}, y0={"x": 1.0}, n_frames=60,
+                        dt=0.2, mode="intensity", size=12)
+    system = parse("x'' = -k*x - c*x'")
+    inits, seeds = [{"k": 3.0, "c": 0.5}, {"k": 6.0, "c": -1.0}], [11, 12]
+    runs = {}
+    for device in ("cpu", "cuda"):
+        frames = ObservationModel().prepare(torch.as_tensor(v.frames, dtype=torch.float32)[:, None].to(device)).inputs
+        config = TrainConfig(max_steps=40, min_steps=40, restarts=2, window=10, device=device)
+        runs[device] = train_restarts(frames, 0.2, system, {}, config, inits, seeds=seeds,
+                                      observation=ObservationModel(), plan=gauge_plan(system)).records
+    for a, b in zip(runs["cpu"], runs["cuda"]):
+        assert a.steps == b.steps == 40
+        for name in ("k", "c"):
+            assert a.final[name] == pytest.approx(b.final[name], rel=1e-3, abs=1e-5)
+
+
 def test_batched_adam_is_torch_adam_per_restart_and_freezes():
     torch.manual_seed(0)
     w = torch.randn(3, 4, requires_grad=True)
