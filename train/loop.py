@@ -81,7 +81,7 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
     block.set_constants({n: [row[n] for row in inits] for n in system.learnable}, clip=True)
     block = block.to(device)
     encoder = observation.encoder(config.encoder, tuple(frames.shape[1:]), system.dim, seeds,
-                                  output_mean=config.prior[0]).to(device)
+                                  output_mean=config.prior[0], output_std=config.prior[1]).to(device)
     gauge = Gauge(plan, system.states, n_runs, config.prior, enabled=config.gauge).to(device)
     if targets:
         distill(encoder, frames, targets, config)

@@ -102,7 +102,7 @@ class ObservationModel:
         return Prepared(inputs, components, rank, note)
 
     def encoder(self, architecture: str, in_shape: tuple[int, int, int], dim: int, seeds,
-                output_mean: float = 0.0) -> BatchedEncoder:
+                output_mean: float = 0.0, output_std: float = 1.0) -> BatchedEncoder:
         return BatchedEncoder(architecture, in_shape, dim, seeds, output_mean=output_mean)
 
     def regulariser(self, z: torch.Tensor) -> torch.Tensor | None:
@@ -152,21 +152,123 @@ class BrightnessObservation(ObservationModel):
         return srgb_to_linear(frames / 255.0 if hi > 1.0 else frames)
 
 
-OBSERVATIONS = {"any": ObservationModel, "brightness": BrightnessObservation}
+class PositionObservation(ObservationModel):
+    """The camera sees where something is: the latent is affine in its image coordinates.
+
+    The heat map is what differs from the clip's median frame (the static scene) by more than
+    three times the noise (median absolute deviation) and by more than CORE of the frame's
+    largest difference; its centroid moves with the object, exactly for a rigid object in view on
+    a static background, whatever its shape, colour or contrast. An object that rests in one
+    place for half the clip is part of the median frame: the centroid then mixes where it is
+    with where it rests.
+    A linear encoder reads the centroid's (x, y): the latent is a position along the line of
+    motion, which no encoder can bend (a bend of a parabola is nearly another parabola, with
+    another g). For a fall, a slide, a level that drops; a pendulum's latent would be L sin(theta).
+    """
+
+    name = "position"
+    architecture = "linear"
+
+    def encoder(self, architecture: str, in_shape: tuple[int, int, int], dim: int, seeds,
+                output_mean: float = 0.0, output_std: float = 1.0) -> BatchedEncoder:
+        """The linear read of the unit-variance path, started at weight +-1 (the seed's sign): the
+        latent then meets the prior's spread from the first step, which a weight drawn at random
+        would leave to an encoder learning rate made for thousands of weights."""
+        enc = super().encoder(architecture, in_shape, dim, seeds, output_mean)
+        with torch.no_grad():
+            w = enc.weights[0]
+            w.copy_(torch.where(w >= 0, 1.0, -1.0) * output_std)
+        return enc
+
+    def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
+        out = super().prepare(frames, architecture, fit_frames)  # the components the checks score against
+        xy, pixels, unseen, _ = centroids(frames, fit_frames)
+        if unseen > 0.1 * frames.shape[0]:
+            raise ConfigError(f"the position observation sees no change from the median frame in {unseen} of "
+                              f"{frames.shape[0]} frames (the object stands still or leaves the view); "
+                              "trim the clip to the motion (--start/--end) or observe 'any'")
+        n_fit = xy.shape[0] if fit_frames is None else int(fit_frames)
+        centred = xy - xy[:n_fit].mean(dim=0)
+        # the line of motion: a linear encoder of two collinear coordinates can cancel its own signal
+        direction = torch.linalg.svd(centred[:n_fit], full_matrices=False).Vh[0]
+        path = centred @ direction
+        z = path / path[:n_fit].std().clamp_min(1e-6)
+        angle = float(torch.rad2deg(torch.atan2(direction[1], direction[0]))) % 180
+        note = (f"position: the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
+                f"average), along its line of motion ({angle:.0f} degrees from the image's x axis), read linearly")
+        return Prepared(z.to(frames.dtype).reshape(-1, 1, 1, 1), out.components, 1, note)
+
+
+CORE = 0.7
+
+
+@torch.no_grad()
+def centroids(frames: torch.Tensor, fit_frames: int | None = None) -> tuple[torch.Tensor, float, int, torch.Tensor]:
+    """(T, 2) image coordinates (x, y) of the centroid of each frame's change from the static
+    scene, the mean number of pixels that carry it, how many frames show no change (their
+    centroid is the previous frame's), and each frame's largest change (T,).
+
+    The static scene is first the median frame of the first fit_frames; an object that slows
+    down (a decay, the end of a slide) sits in that median where it lingers, and its ghost there
+    pulls the centroid. So a second pass rebuilds each pixel's background from the frames in
+    which the first pass put the object farther away than twice its size, and measures again.
+    """
+    gray = frames.double().mean(dim=1)  # (T, H, W)
+    n_fit = gray.shape[0] if fit_frames is None else int(fit_frames)
+    background = gray[:n_fit].median(dim=0).values
+    xy, heat = _centroids(gray, background)
+    size = float((heat > 0).sum(dim=(1, 2)).double().mean()) ** 0.5
+    h, w = gray.shape[1:]
+    ys, xs = torch.meshgrid(torch.arange(h, dtype=gray.dtype, device=gray.device),
+                            torch.arange(w, dtype=gray.dtype, device=gray.device), indexing="ij")
+    far = ((xs[None] - xy[:n_fit, 0, None, None]) ** 2 + (ys[None] - xy[:n_fit, 1, None, None]) ** 2) > (2 * size + 2) ** 2
+    count = far.sum(dim=0)
+    clean = (gray[:n_fit] * far).sum(dim=0) / count.clamp_min(1)
+    background = torch.where(count >= max(3, n_fit // 10), clean, background)
+    xy, heat = _centroids(gray, background)
+    mass = heat.sum(dim=(1, 2))
+    seen = mass > 0
+    for t in range(1, len(xy)):  # a frame with no change keeps the last position seen
+        if not seen[t]:
+            xy[t] = xy[t - 1]
+    pixels = float((heat > 0).sum(dim=(1, 2)).double().mean())
+    return xy, pixels, int((~seen).sum()), heat.flatten(1).max(dim=1).values
+
+
+def _centroids(gray: torch.Tensor, background: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    diff = (gray - background).abs()
+    noise = 1.4826 * diff.flatten().median() + 1e-12
+    # only each frame's strongest change: the object, not a hand that moves at the edge, a
+    # shadow or the camera's exposure drifting over the whole wall
+    floor = torch.maximum(3 * noise, CORE * diff.flatten(1).max(dim=1).values)[:, None, None]
+    heat = torch.where(diff > floor, diff, torch.zeros_like(diff))
+    mass = heat.sum(dim=(1, 2)).clamp_min(1e-12)
+    h, w = gray.shape[1:]
+    ys = torch.arange(h, dtype=heat.dtype, device=heat.device)
+    xs = torch.arange(w, dtype=heat.dtype, device=heat.device)
+    cx = (heat.sum(dim=1) * xs).sum(dim=1) / mass
+    cy = (heat.sum(dim=2) * ys).sum(dim=1) / mass
+    return torch.stack([cx, cy], dim=1), heat
+
+
+OBSERVATIONS = {"any": ObservationModel, "brightness": BrightnessObservation, "position": PositionObservation}
 assert ("auto",) + tuple(OBSERVATIONS) == OBSERVE_CHOICES, "train/config.py lists the models the CLI offers"
 
-# The auto choice: of the change the frames' first principal component carries, the share whose
-# sign agrees with the whole (energy-weighted). A lamp that dims darkens every pixel it lights
-# (near 1); an object that moves darkens where it leaves and lightens where it arrives (near 0).
-ONE_SIGNED = 0.8
+# The auto choice looks at where the frames change (the heat map of PositionObservation): a
+# change whose centroid travels farther than the changing region's own size is something that
+# moves; one that moves ONE_WAY (|rank correlation| of its travel with time) is a fall, a slide
+# or a level that drops; a change that stays in place is light.
+ONE_WAY = 0.9
+STRONG = 0.25  # frames whose largest change is at least this share of the clip's largest
 LOOK_FRAMES = 256
 
 
 def resolve_observation(spec: str | ObservationModel | None, system, frames: torch.Tensor | None = None,
                         light: str = "srgb", encoder: str = "auto") -> ObservationModel:
     """The observation model a fit uses, with its reason: an instance as given, a name, or "auto"
-    (None): brightness for a single first-order linear equation whose frames brighten or dim as
-    one, any otherwise (and wherever an encoder other than linear was asked for)."""
+    (None): position where the change moves one way, brightness for a single first-order linear
+    equation whose frames brighten or dim as one, any otherwise (and wherever an encoder other
+    than linear was asked for)."""
     if isinstance(spec, ObservationModel):
         spec.reason = spec.reason or f"{spec.name} (as given)"
         return spec
@@ -174,7 +276,7 @@ def resolve_observation(spec: str | ObservationModel | None, system, frames: tor
     if name not in OBSERVE_CHOICES:
         raise ConfigError(f"unknown observation model {name!r}; choose one of {', '.join(OBSERVE_CHOICES)}")
     if name != "auto":
-        model = BrightnessObservation(light) if name == "brightness" else ObservationModel()
+        model = BrightnessObservation(light) if name == "brightness" else OBSERVATIONS[name]()
         model.reason = f"{name} (as asked)"
         return model
     if encoder not in ("auto", "linear"):
@@ -182,34 +284,62 @@ def resolve_observation(spec: str | ObservationModel | None, system, frames: tor
         model.reason = f"any (auto: the {encoder} encoder was asked for)"
         return model
     from fitode.eqparse.identify import power_symmetric  # sympy: only when a fit is set up
+    seen = look(frames) if frames is not None else None
+    if seen is not None and seen.moves and seen.one_way >= ONE_WAY:
+        model = PositionObservation()
+        model.reason = (f"position (auto: the change moves {seen.travel:.0f} pixels, {seen.travel / seen.size:.0f}x its "
+                        f"size, one way (rank correlation {seen.one_way:.2f} with time): a free encoder could bend "
+                        "its path into one with other constants)")
+        return model
     if not power_symmetric(system):
         model = ObservationModel()
         model.reason = "any (auto: the paper's free encoder; the equation's constants do not follow a bend of the latent)"
         return model
-    share = one_signed_share(frames) if frames is not None else 0.0
-    if share >= ONE_SIGNED:
+    if seen is not None and not seen.moves:
         model = BrightnessObservation(light)
-        model.reason = (f"brightness (auto: a single first-order linear equation, and the frames brighten or dim as "
-                        f"one: {share:.0%} of the change has one sign)")
+        model.reason = (f"brightness (auto: a single first-order linear equation, and the change stays in place: "
+                        f"it brightens or dims, its centre moves {seen.travel:.1f} pixels)")
     else:
         model = ObservationModel()
-        model.reason = (f"any (auto: the change has both signs, {share:.0%} one-signed, as where something moves; "
-                        "the linear encoder keeps the rate)")
+        model.reason = ("any (auto: the change moves back and forth; the linear encoder keeps the rate)"
+                        if seen is not None else "any (auto: no frames to look at)")
     return model
 
 
+@dataclass
+class Look:
+    """Where the frames change: how far the change's centroid travels, the changing region's size
+    (the square root of its area), both in pixels, and how one-way the travel runs in time."""
+
+    travel: float
+    size: float
+    one_way: float
+
+    @property
+    def moves(self) -> bool:
+        return self.travel > self.size
+
+
 @torch.no_grad()
-def one_signed_share(frames: torch.Tensor) -> float:
-    """How much of the frames' main change has one sign (0.5..1; see ONE_SIGNED), from at most
-    LOOK_FRAMES frames spread over the clip."""
-    step = max(1, frames.shape[0] // LOOK_FRAMES)
-    sub = frames[::step]
-    flat = sub.reshape(sub.shape[0], -1).double()
-    centred = flat - flat.mean(dim=0, keepdim=True)
-    if centred.shape[0] < 2 or float(centred.abs().max()) == 0:
-        return 0.0
-    _, vecs = torch.linalg.eigh(centred @ centred.T)
-    v = centred.T @ vecs[:, -1]  # the first component's pixel map (its overall sign is arbitrary)
-    energy = v * v
-    positive = float(energy[v > 0].sum())
-    return max(positive, float(energy.sum()) - positive) / float(energy.sum())
+def look(frames: torch.Tensor) -> Look:
+    """The look behind the auto choice, from at most LOOK_FRAMES frames spread over the clip."""
+    sub = frames[:: max(1, frames.shape[0] // LOOK_FRAMES)]
+    xy, _, _, peak = centroids(sub)
+    # frames that barely differ from the static scene (a lamp at its median brightness) have a
+    # centroid of noise: only the frames with a clear change say where it is
+    strong = peak >= STRONG * peak.max()
+    xy = xy[strong]
+    # the size of everything that changes (a lamp's whole glow, not only its brightest core)
+    gray = sub.double().mean(dim=1)
+    diff = (gray - gray.median(dim=0).values).abs()
+    pixels = float((diff[strong] > 3 * 1.4826 * diff.flatten().median()).sum(dim=(1, 2)).double().mean()) \
+        if bool(strong.any()) else 0.0
+    centred = xy - xy.mean(dim=0)
+    if xy.shape[0] < 3 or float(centred.abs().max()) == 0:
+        return Look(0.0, max(pixels, 1.0) ** 0.5, 0.0)
+    direction = torch.linalg.svd(centred, full_matrices=False).Vh[0]
+    path = centred @ direction
+    ranks = torch.argsort(torch.argsort(path)).double()
+    t = torch.arange(len(ranks), dtype=torch.float64, device=ranks.device)
+    one_way = abs(float(torch.corrcoef(torch.stack([ranks, t]))[0, 1]))
+    return Look(float(path.max() - path.min()), max(pixels, 1.0) ** 0.5, one_way)

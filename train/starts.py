@@ -70,7 +70,7 @@ class _Frozen(nn.Module):
 class _FrozenLatent(ObservationModel):
     name = "frozen"
 
-    def encoder(self, architecture, in_shape, dim, seeds, output_mean=0.0):
+    def encoder(self, architecture, in_shape, dim, seeds, output_mean=0.0, output_std=1.0):
         return _Frozen(len(seeds))
 
 

@@ -123,7 +123,8 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         estimates[name] = Estimate(float(vals.mean()), float(vals.std()) if len(vals) > 1 else 0.0, len(vals), unit)
     findings, numbers = video_checks(latents[best, :n_train], rollouts[best, :n_train], coefs, dt,
                                      records[best].score, oscillator=system.max_order >= 2,
-                                     encoder=config.encoder, rank=prepared.rank, miss=records[best].miss)
+                                     encoder=config.encoder, rank=prepared.rank, miss=records[best].miss,
+                                     observation=observation.name)
     verdicts = judge(system.learnable, records, selected, {n: e.value for n, e in estimates.items()}, findings,
                      analysis=analyse(system))
     return FitResult(
