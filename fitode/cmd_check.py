@@ -119,6 +119,8 @@ _REMOVES = {
     "brightness": "the pixels are decoded from sRGB to linear light and read linearly: no bend of the latent "
                   "(I -> I**p, which would multiply a decay rate by p) and no transfer curve (about p = 1/2.2)",
     "any": "a free encoder: the latent may be any function of the pixels; the gauge fixes only its scale and offset",
+    "position": "the centroid of the change along its line of motion, read linearly: no bend of the latent "
+                "(a bent parabola is nearly another parabola, with another g)",
 }
 
 
@@ -128,11 +130,12 @@ def observation_lines(system, named: str | None) -> list[str]:
         text = [f"{named} (from the equation file): {_REMOVES[named]}"]
     else:
         from fitode.eqparse.identify import power_symmetric
+        moving = "auto -> position where the change moves one way (a fall, a slide, a level): " + _REMOVES["position"]
         if not power_symmetric(system):
-            text = [f"auto -> any, as no constant follows a bend of the latent: {_REMOVES['any']}"]
+            text = [moving, f"elsewhere any, as no constant follows a bend of the latent: {_REMOVES['any']}"]
         else:
-            text = ["auto -> brightness where the frames brighten or dim as one: " + _REMOVES["brightness"],
-                    "where the change moves instead: any, with the linear encoder, which removes the bend only"]
+            text = [moving, "brightness where the change stays in place (it brightens or dims): " + _REMOVES["brightness"],
+                    "where it moves back and forth: any, with the linear encoder, which removes the bend only"]
     out = ["observation (what the camera measures; --observe overrides):"]
     for para in text:
         out += textwrap.wrap(para, width=_WIDTH, initial_indent="  ", subsequent_indent="    ")

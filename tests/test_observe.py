@@ -124,11 +124,12 @@ def test_an_equation_file_names_its_observation(tmp_path):
 def test_check_names_the_observation_and_what_it_removes(capsys):
     assert cli.main(["check", "--eq", DECAY]) == 0
     out = capsys.readouterr().out
-    assert "auto -> brightness where the frames brighten or dim as one" in out and "I -> I**p" in out
+    assert "brightness where the change stays in place" in out and "I -> I**p" in out
+    assert "auto -> position where the change moves one way" in out
     assert cli.main(["check", "--system", "led_decay"]) == 0
     assert "brightness (from the equation file)" in capsys.readouterr().out
     assert cli.main(["check", "--system", "pendulum"]) == 0
-    assert "auto -> any" in capsys.readouterr().out
+    assert "elsewhere any, as no constant follows a bend" in capsys.readouterr().out
 
 
 def test_cli_refuses_a_free_encoder_with_the_brightness_observation(tmp_path, capsys):
