@@ -232,9 +232,9 @@ def complete_report(report: dict[str, Any], result, analysis, calibration, t0: f
                         f"{result.selection_factor:g}x the best and were left out of the estimate "
                         f"(runs {', '.join(str(i + 1) for i in dropped)})")
         elsewhere = [r for r in result.runs if r.index in dropped and any(
-            abs(r.final[n] - e.value) > SPREAD_WARN * max(abs(e.value), 1e-12) for n, e in result.parameters.items())]
+            abs(r.value(n) - e.value) > SPREAD_WARN * max(abs(e.value), 1e-12) for n, e in result.parameters.items())]
         if elsewhere:
-            ends = "; ".join(f"run {r.index + 1}: " + ", ".join(f"{n}={v:.4g}" for n, v in r.final.items())
+            ends = "; ".join(f"run {r.index + 1}: " + ", ".join(f"{n}={r.value(n):.4g}" for n in r.final)
                              for r in elsewhere)
             # measured on the paper's scale video: an overdamped fit (g1 ~ 14) reached a lower loss
             # than the true basin, so the lowest loss alone does not settle which basin is right

@@ -172,3 +172,18 @@ def test_an_led_decay_on_a_textured_noisy_board_with_default_flags(tmp_path, cap
     gamma = report["parameters"]["gamma"]
     assert abs(gamma["value"] / 0.92 - 1) < 0.08, gamma
     assert gamma["verdict"] == "trusted", gamma
+
+
+def test_a_constant_that_changes_sign_with_the_state_is_compared_in_one_orientation():
+    from fitode.eqparse.identify import sign_odd
+    from fitode.train.result import RunRecord
+    from fitode.train.trainer import _align
+    assert sign_odd(parse("x'' = a")) == {"a"} and sign_odd(parse("x' = -k*(x - c)")) == {"c"}
+    assert sign_odd(parse("x'' = -k*x - c*x'")) == set()
+    t = np.linspace(0, 1, 20)
+    latents = np.stack([t ** 2, -(t ** 2), t ** 2])[:, :, None]  # run 1 points the other way
+    runs = [RunRecord(index=i, seed=i, init={}, final={"a": v, "k": 2.0}, loss=0.1, steps=1, status="ok")
+            for i, v in enumerate([12.0, -11.5, 12.1])]
+    _align(runs, latents, 0, {"a"})
+    assert [r.value("a") for r in runs] == [12.0, 11.5, 12.1]
+    assert [r.value("k") for r in runs] == [2.0, 2.0, 2.0] and runs[1].final["a"] == -11.5

@@ -41,10 +41,17 @@ class RunRecord:
     score: float | None = None  # does its latent tell the frames apart (fitode.train.score); None: not scored
     miss: float | None = None  # final window prediction error over the latent's variance (scale-free, no KL)
     origin: str = ""  # where its start came from: "user", "equation file", "data" or "spread"
+    # final values in the best run's orientation of the latent: a constant that changes sign with
+    # the state (g in d'' = g) is negated where this run's latent points the other way
+    aligned: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not isinstance(self.history, History):  # a plain dict, as JSON and hand-built records give it
             self.history = History.from_dict(self.history)
+
+    def value(self, name: str) -> float:
+        """The final value of a constant, comparable across restarts (see aligned)."""
+        return self.aligned.get(name, self.final[name])
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "RunRecord":

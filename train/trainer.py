@@ -15,13 +15,14 @@ import torch
 from fitode.codegen.constants import reparam_for
 from fitode.eqparse import OdeSystem, ParamSpec, analyse
 from fitode.eqparse.gauge import gauge_plan
+from fitode.eqparse.identify import sign_odd
 from fitode.errors import TrainingError
 
 from . import interrupts
 from .config import TrainConfig, resolve_encoder
 from .loop import Callback, StepInfo, Trained, encode_all, train_restarts
 from .observe import ObservationModel, resolve_observation
-from .result import Estimate, FitResult
+from .result import Estimate, FitResult, RunRecord
 from .score import dominant_period, separation_score
 from .selection import select_runs
 from .starts import CANDIDATES, data_starts
@@ -116,9 +117,10 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         errors = "; ".join(f"run {r.index + 1}: {r.error}" for r in records)
         raise TrainingError(f"every run failed ({errors})")
     best = min(selected, key=lambda i: records[i].loss)
+    _align(records, latents[:, :n_train], best, sign_odd(system))
     estimates = {}
     for name in system.learnable:
-        vals = np.array([records[i].final[name] for i in selected])
+        vals = np.array([records[i].value(name) for i in selected])
         unit = params.get(name, ParamSpec()).unit
         estimates[name] = Estimate(float(vals.mean()), float(vals.std()) if len(vals) > 1 else 0.0, len(vals), unit)
     findings, numbers = video_checks(latents[best, :n_train], rollouts[best, :n_train], coefs, dt,
@@ -139,6 +141,18 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         verdicts={n: v.to_dict() for n, v in verdicts.items()},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},
     )
+
+
+def _align(records: list[RunRecord], latents: np.ndarray, best: int, odd: set[str]) -> None:
+    """Each run's values in the best run's orientation: where its (one-dimensional) latent runs
+    opposite to the best run's, the constants that change sign with the state are negated."""
+    ref = latents[best, :, 0] - latents[best, :, 0].mean()
+    for r in records:
+        flip = False
+        if odd and latents.shape[2] == 1 and r.final and np.all(np.isfinite(latents[r.index])):
+            z = latents[r.index, :, 0] - latents[r.index, :, 0].mean()
+            flip = float(z @ ref) < 0
+        r.aligned = {n: (-v if flip and n in odd else v) for n, v in r.final.items()}
 
 
 @contextlib.contextmanager

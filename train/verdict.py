@@ -176,7 +176,7 @@ def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[st
             elif c.scale == "dependent" and name not in calibrated:
                 found.append(Finding("not trustworthy", "its value depends on the latent's arbitrary units; "
                                      "give --calibrate with known values of the state"))
-        vals = [r.final[name] for r in sel if name in r.final]
+        vals = [r.value(name) for r in sel if name in r.final]
         if len(vals) > 1 and np.std(vals) > AGREE_TOL * max(abs(value), 1e-12):
             found.append(Finding("ambiguous", "the selected restarts disagree: "
                                  + ", ".join(f"{v:.4g}" for v in vals)))
@@ -185,10 +185,10 @@ def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[st
         rivals = [r for r in runs if r.index not in selected and r.status == "ok" and name in r.final
                   and best_score is not None and r.score is not None and r.score >= best_score - SCORE_MARGIN
                   and (r.miss is None or r.miss <= RIVAL_MISS * best_miss)
-                  and abs(r.final[name] - value) > AGREE_TOL * max(abs(value), 1e-12)]
+                  and abs(r.value(name) - value) > AGREE_TOL * max(abs(value), 1e-12)]
         if rivals:
             found.append(Finding("ambiguous", "restarts that tell the frames apart as well ended elsewhere: "
-                                 + "; ".join(f"run {r.index + 1} at {r.final[name]:.4g} (score {r.score:.2f}, "
+                                 + "; ".join(f"run {r.index + 1} at {r.value(name):.4g} (score {r.score:.2f}, "
                                              f"loss {r.loss:.3g})" for r in rivals)))
         moving = [m for m in (_motion(r, name) for r in sel if not r.converged) if m is not None]
         if moving and min(moving) > SETTLED:
