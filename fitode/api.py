@@ -34,7 +34,9 @@ def fit(frames, dt: float, *, eq: str | None = None, system: str | OdeSystem | N
     use_kl, lr, const_lr, batch_windows, seed, device, threads, ...). Every bad option raises a
     fitode.ConfigError naming it, before any work.
     """
-    ode, spec_params, spec_prior = _equation(eq, system, eq_file, const, free)
+    ode, spec_params, spec_prior, spec_observe = _equation(eq, system, eq_file, const, free)
+    if observe is None:
+        observe = spec_observe
     if params is not None:
         spec_params = {**spec_params, **params}
     config = checked_config(ode, options, prior=prior, default_prior=spec_prior, init=init,
@@ -93,13 +95,15 @@ def as_frames(frames) -> torch.Tensor:
     return x.contiguous()
 
 
-def _equation(eq, system, eq_file, const, free) -> tuple[OdeSystem, dict[str, ParamSpec], tuple[float, float]]:
+def _equation(eq, system, eq_file, const, free) -> tuple[OdeSystem, dict[str, ParamSpec], tuple[float, float],
+                                                         str | None]:
+    """The system, its parameters, prior and observation model (None: auto) from the equation given."""
     if isinstance(system, OdeSystem):
         if eq is not None or eq_file is not None:
             raise FitodeError("give the equation once: eq, system or eq_file")
-        return system, {}, (0.0, 1.0)
+        return system, {}, (0.0, 1.0), None
     from fitode.eqfile import resolve
     ode, spec = resolve(eq=eq, eq_file=eq_file, system=system, const=const, free=free)
     if spec is None:
-        return ode, {}, (0.0, 1.0)
-    return ode, dict(spec.parameters), (spec.prior_mean, spec.prior_std)
+        return ode, {}, (0.0, 1.0), None
+    return ode, dict(spec.parameters), (spec.prior_mean, spec.prior_std), spec.observe

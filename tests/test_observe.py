@@ -79,7 +79,7 @@ def test_auto_picks_position_brightness_or_any_from_a_look_at_the_frames():
     assert isinstance(resolve_observation(None, osc, moving), PositionObservation)
     assert type(resolve_observation(None, osc, swinging)) is ObservationModel
     dim = resolve_observation(None, decay, _frames("dim"))
-    assert isinstance(dim, BrightnessObservation) and "brightens or dims" in dim.reason
+    assert isinstance(dim, BrightnessObservation) and "stays in place" in dim.reason
     back_and_forth = resolve_observation("auto", decay, swinging)
     assert type(back_and_forth) is ObservationModel and "back and forth" in back_and_forth.reason
     assert type(resolve_observation(None, osc, _frames("dim"))) is ObservationModel
@@ -187,3 +187,12 @@ def test_a_constant_that_changes_sign_with_the_state_is_compared_in_one_orientat
     _align(runs, latents, 0, {"a"})
     assert [r.value("a") for r in runs] == [12.0, 11.5, 12.1]
     assert [r.value("k") for r in runs] == [2.0, 2.0, 2.0] and runs[1].final["a"] == -11.5
+
+
+def test_the_api_takes_the_equation_files_observation():
+    frames = _frames("move").numpy()  # auto would not call this brightness
+    res = fitode.fit(frames, 0.1, system="led_decay", restarts=1, max_steps=5, min_steps=5, progress=False)
+    assert res.meta["observation"] == "brightness" and "as asked" in res.meta["observation_reason"]
+    res = fitode.fit(frames, 0.1, system="led_decay", observe="any", restarts=1, max_steps=5, min_steps=5,
+                     progress=False)
+    assert res.meta["observation"] == "any"

@@ -297,8 +297,9 @@ def resolve_observation(spec: str | ObservationModel | None, system, frames: tor
         return model
     if seen is not None and not seen.moves:
         model = BrightnessObservation(light)
-        model.reason = (f"brightness (auto: a single first-order linear equation, and the change stays in place: "
-                        f"it brightens or dims, its centre moves {seen.travel:.1f} pixels)")
+        why = (f"one pattern that brightens or dims: the first singular value is {seen.gap:.0f}x the second"
+               if seen.gap >= SUBSPACE_JUMP else f"its centre moves {seen.travel:.1f} pixels, less than its size")
+        model.reason = f"brightness (auto: a single first-order linear equation, and the change stays in place, {why})"
     else:
         model = ObservationModel()
         model.reason = ("any (auto: the change moves back and forth; the linear encoder keeps the rate)"
@@ -314,10 +315,14 @@ class Look:
     travel: float
     size: float
     one_way: float
+    gap: float = 1.0  # the frames' first singular value over their second
 
     @property
     def moves(self) -> bool:
-        return self.travel > self.size
+        """The change travels farther than its size, and it is not one pattern that brightens
+        and dims: a lamp's frames lie on one line in pixel space (a clear gap after the first
+        singular value), even where its brightest core seems to wander."""
+        return self.travel > self.size and self.gap < SUBSPACE_JUMP
 
 
 @torch.no_grad()
@@ -334,12 +339,16 @@ def look(frames: torch.Tensor) -> Look:
     diff = (gray - gray.median(dim=0).values).abs()
     pixels = float((diff[strong] > 3 * 1.4826 * diff.flatten().median()).sum(dim=(1, 2)).double().mean()) \
         if bool(strong.any()) else 0.0
+    flat = gray.reshape(gray.shape[0], -1)
+    flat = flat - flat.mean(dim=0)
+    sv = torch.linalg.eigvalsh(flat @ flat.T).flip(0).clamp_min(0).sqrt()
+    gap = float(sv[0] / sv[1].clamp_min(1e-12)) if len(sv) > 1 else 1.0
     centred = xy - xy.mean(dim=0)
     if xy.shape[0] < 3 or float(centred.abs().max()) == 0:
-        return Look(0.0, max(pixels, 1.0) ** 0.5, 0.0)
+        return Look(0.0, max(pixels, 1.0) ** 0.5, 0.0, gap)
     direction = torch.linalg.svd(centred, full_matrices=False).Vh[0]
     path = centred @ direction
     ranks = torch.argsort(torch.argsort(path)).double()
     t = torch.arange(len(ranks), dtype=torch.float64, device=ranks.device)
     one_way = abs(float(torch.corrcoef(torch.stack([ranks, t]))[0, 1]))
-    return Look(float(path.max() - path.min()), max(pixels, 1.0) ** 0.5, one_way)
+    return Look(float(path.max() - path.min()), max(pixels, 1.0) ** 0.5, one_way, gap)
