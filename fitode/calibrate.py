@@ -96,12 +96,15 @@ def _number(text: str, what: str) -> float:
     return v
 
 
-def check_times(points: Sequence[CalibrationPoint], t_first: float, t_last: float | None = None) -> None:
-    """Every time must lie within the clip: [t_first, t_last] seconds (t_last None: [0, t_first])."""
+def check_times(points: Sequence[CalibrationPoint], t_first: float, t_last: float | None = None,
+                slack: float = 0.0) -> None:
+    """Every time must lie within the clip: [t_first, t_last] seconds (t_last None: [0, t_first]),
+    give or take `slack` (half a frame: a time typed rounded, 1.017 for a last frame at 1.01667 s,
+    still names that frame; it reads the nearest frame's value)."""
     if t_last is None:
         t_first, t_last = 0.0, t_first
     for p in points:
-        if not (t_first - 1e-9 <= p.time <= t_last + 1e-9):
+        if not (t_first - slack - 1e-9 <= p.time <= t_last + slack + 1e-9):
             raise CalibrationError(f"--calibrate: {p.state}({p.time:g}) is outside the clip, which runs from "
                                    f"{t_first:.4g} s to {t_last:.4g} s")
 
@@ -210,7 +213,7 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     time_offset: the video time of frame 0 (the points' times are video times).
     """
     time = np.asarray(result.time, dtype=float) + time_offset
-    check_times(points, float(time[0]), float(time[-1]))
+    check_times(points, float(time[0]), float(time[-1]), slack=0.5 * float(result.dt))
     latent = np.asarray(result.latent, dtype=float)
     maps = fit_affine(points, time, latent, result.states)
     x = latent.copy()

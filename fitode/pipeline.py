@@ -91,7 +91,7 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
     t0 = float(clip.start_frame) / float(clip.fps)  # video time of frame 0: what --start skipped
     if points is not None:
         from fitode.calibrate import check_times
-        check_times(points, t0, t0 + (n_frames - 1) * clip.dt)
+        check_times(points, t0, t0 + (n_frames - 1) * clip.dt, slack=0.5 * clip.dt)
 
     from fitode.api import as_frames
     from fitode.train.observe import resolve_observation

@@ -65,6 +65,11 @@ def test_times_must_lie_inside_the_clip():
         check_times(pts, 29.0)
     with pytest.raises(CalibrationError, match="outside the clip"):
         check_times(pts, 1.0, 40.0)
+    # a time typed rounded past the last frame (30.004 for 30.0) names that frame within half a frame
+    rounded = parse_calibration("h(0)=1; h(30.004)=2", ["h"])
+    check_times(rounded, 0.0, 30.0, slack=0.005)
+    with pytest.raises(CalibrationError, match="outside the clip"):
+        check_times(rounded, 0.0, 30.0, slack=0.003)
 
 
 def test_affine_map_is_least_squares_on_interpolated_latent():
