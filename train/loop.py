@@ -68,7 +68,7 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
     """Train len(inits) restarts on prepared frames (T, C, H, W) already on the target device.
     targets: {restart: (T,) latent} whose encoder first learns that latent (see distill)."""
     t0 = time.perf_counter()
-    config, _ = resolve_encoder(config, system)
+    config, _ = resolve_encoder(config, system, observation)
     n_runs = len(inits)
     device = frames.device
     windows = Windows(frames.shape[0], config.window)

@@ -188,10 +188,8 @@ class PositionObservation(ObservationModel):
                               f"{frames.shape[0]} frames (the object stands still or leaves the view); "
                               "trim the clip to the motion (--start/--end) or observe 'any'")
         n_fit = xy.shape[0] if fit_frames is None else int(fit_frames)
-        centred = xy - xy[:n_fit].mean(dim=0)
         # the line of motion: a linear encoder of two collinear coordinates can cancel its own signal
-        direction = torch.linalg.svd(centred[:n_fit], full_matrices=False).Vh[0]
-        path = centred @ direction
+        direction, path = line_of_motion(xy, n_fit)
         z = path / path[:n_fit].std().clamp_min(1e-6)
         angle = float(torch.rad2deg(torch.atan2(direction[1], direction[0]))) % 180
         note = (f"position: the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
@@ -235,9 +233,24 @@ def centroids(frames: torch.Tensor, fit_frames: int | None = None) -> tuple[torc
     return xy, pixels, int((~seen).sum()), heat.flatten(1).max(dim=1).values
 
 
+def line_of_motion(xy: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """The direction (2,) along which the centroids of the first n_fit frames spread most, and
+    every centroid's signed distance along it from their mean, (T,)."""
+    n_fit = xy.shape[0] if n_fit is None else n_fit
+    centred = xy - xy[:n_fit].mean(dim=0)
+    direction = torch.linalg.svd(centred[:n_fit], full_matrices=False).Vh[0]
+    return direction, centred @ direction
+
+
+def _noise(diff: torch.Tensor) -> torch.Tensor:
+    """The noise level of differences from the static scene: their median absolute value, scaled
+    to a standard deviation (most pixels of most frames show only noise)."""
+    return 1.4826 * diff.flatten().median() + 1e-12
+
+
 def _centroids(gray: torch.Tensor, background: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     diff = (gray - background).abs()
-    noise = 1.4826 * diff.flatten().median() + 1e-12
+    noise = _noise(diff)
     # only each frame's strongest change: the object, not a hand that moves at the edge, a
     # shadow or the camera's exposure drifting over the whole wall
     floor = torch.maximum(3 * noise, CORE * diff.flatten(1).max(dim=1).values)[:, None, None]
@@ -337,17 +350,14 @@ def look(frames: torch.Tensor) -> Look:
     # the size of everything that changes (a lamp's whole glow, not only its brightest core)
     gray = sub.double().mean(dim=1)
     diff = (gray - gray.median(dim=0).values).abs()
-    pixels = float((diff[strong] > 3 * 1.4826 * diff.flatten().median()).sum(dim=(1, 2)).double().mean()) \
-        if bool(strong.any()) else 0.0
+    pixels = float((diff[strong] > 3 * _noise(diff)).sum(dim=(1, 2)).double().mean()) if bool(strong.any()) else 0.0
     flat = gray.reshape(gray.shape[0], -1)
     flat = flat - flat.mean(dim=0)
     sv = torch.linalg.eigvalsh(flat @ flat.T).flip(0).clamp_min(0).sqrt()
     gap = float(sv[0] / sv[1].clamp_min(1e-12)) if len(sv) > 1 else 1.0
-    centred = xy - xy.mean(dim=0)
-    if xy.shape[0] < 3 or float(centred.abs().max()) == 0:
+    if xy.shape[0] < 3 or float((xy - xy.mean(dim=0)).abs().max()) == 0:
         return Look(0.0, max(pixels, 1.0) ** 0.5, 0.0, gap)
-    direction = torch.linalg.svd(centred, full_matrices=False).Vh[0]
-    path = centred @ direction
+    _, path = line_of_motion(xy)
     ranks = torch.argsort(torch.argsort(path)).double()
     t = torch.arange(len(ranks), dtype=torch.float64, device=ranks.device)
     one_way = abs(float(torch.corrcoef(torch.stack([ranks, t]))[0, 1]))
