@@ -4,8 +4,9 @@ The encoder fixes the latent only up to a scale and an offset. Given two or more
 of a state (`--calibrate "h(0)=0.07; h(25)=0.01"`, times in seconds of the video at the real
 frame rate, as latent.png's time axis shows them), fitode
 
-1. fits the affine map x = a*z + b from the best run's encoded latent z (linearly interpolated
-   at those times) to the known values, by least squares, per calibrated state;
+1. fits the affine map x = a*z + b from the best run's encoded latent z (a quadratic through
+   the frames within three of each time: see local_value) to the known values, by least
+   squares, per calibrated state;
 2. re-estimates the equation's constants on the calibrated trajectory x(t): windows of x of the
    training length, the physics block rolled out from each window's first frames, only the
    constants learnable (a coarse search over starting points, then Adam, then L-BFGS). This
@@ -117,7 +118,7 @@ def fit_affine(points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.
     for state in dict.fromkeys(p.state for p in points):
         col = list(states).index(state)
         mine = [p for p in points if p.state == state]
-        z = np.interp([p.time for p in mine], time, np.asarray(latent, dtype=float)[:, col])
+        z = np.array([local_value(time, np.asarray(latent, dtype=float)[:, col], p.time) for p in mine])
         v = np.array([p.value for p in mine])
         spread = float(np.ptp(latent[:, col])) or 1.0
         if np.ptp(z) < 1e-6 * spread:
@@ -128,6 +129,29 @@ def fit_affine(points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.
         rms = float(np.sqrt(np.mean((A @ np.array([a, b]) - v) ** 2)))
         maps[state] = AffineMap(float(a), float(b), len(mine), rms)
     return maps
+
+
+LOCAL_HALF_WIDTH = 3
+
+
+def local_value(time: np.ndarray, z: np.ndarray, at: float) -> float:
+    """The latent at time `at` from a quadratic fitted to the frames within LOCAL_HALF_WIDTH
+    frames of it (fewer at the clip's ends), not from the one or two frames around it: a
+    measured latent is noisiest at the ends of a clip, where calibration points are usually
+    put (a falling ball's radius at its smallest), and a single frame's error there sets the
+    whole scale."""
+    n = len(time)
+    if n < 2 * LOCAL_HALF_WIDTH + 1:
+        return float(np.interp(at, time, z))
+    i = int(np.clip(np.searchsorted(time, at), 0, n - 1))
+    lo = max(0, i - LOCAL_HALF_WIDTH)
+    hi = min(n, i + LOCAL_HALF_WIDTH + 1)
+    t, y = time[lo:hi], z[lo:hi]
+    if len(t) < 4 or not np.all(np.isfinite(y)):
+        return float(np.interp(at, time, z))
+    centre = t.mean()
+    coef = np.polyfit(t - centre, y, 2)
+    return float(np.polyval(coef, at - centre))
 
 
 @dataclass

@@ -121,6 +121,9 @@ _REMOVES = {
     "any": "a free encoder: the latent may be any function of the pixels; the gauge fixes only its scale and offset",
     "position": "the centroid of the change along its line of motion, read linearly: no bend of the latent "
                 "(a bent parabola is nearly another parabola, with another g)",
+    "size": "the apparent radius of what grows or shrinks, read linearly: no bend of the latent",
+    "distance": "the reciprocal of the apparent radius of what moves along the line of sight (a pinhole camera "
+                "sees radius f R / d), read linearly: the latent is affine in the distance, unbent",
 }
 
 

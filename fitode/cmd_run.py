@@ -28,7 +28,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     from fitode.train.config import OBSERVE_CHOICES
     tr.add_argument("--observe", choices=OBSERVE_CHOICES, default=None,
                     help="what the camera measures about the state: position (where the change is, along its "
-                         "line of motion), brightness (linear in the light, decoded from sRGB; see --light), any "
+                         "line of motion), brightness (linear in the light, decoded from sRGB; see --light), size (the "
+                         "apparent radius of what grows or shrinks), distance (its reciprocal: motion along the "
+                         "line of sight), any "
                          "(a free encoder, the paper's), or auto (chosen from the "
                          "equation and a look at the frames, and printed; default: the equation file's, else auto)")
     tr.add_argument("--train-fraction", type=fraction, metavar="F", default=None,

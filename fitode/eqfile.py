@@ -6,7 +6,7 @@ Format (every key but `name` and `equation` optional):
     description = "..."
     equation = "theta'' = -g/L*sin(theta) - zeta*theta'"
     stride = 2                      # suggested frame stride
-    observe = "brightness"          # what the camera measures (auto, any, brightness)
+    observe = "brightness"          # what the camera measures (auto, any, brightness, position, size, distance)
     [constants]                     # fixed at these values
     g = 9.80665
     [parameters]                    # learnable constants

@@ -15,7 +15,7 @@ from fitode.errors import ConfigError
 ENCODER_NAMES = ("mlp", "cnn", "linear")
 ENCODER_CHOICES = ("auto",) + ENCODER_NAMES  # auto: linear where a free encoder could report any rate
 # what the camera measures about the state (train/observe.py); auto: chosen from the equation and the frames
-OBSERVE_CHOICES = ("auto", "any", "brightness", "position")
+OBSERVE_CHOICES = ("auto", "any", "brightness", "position", "size", "distance")
 LIGHT_CHOICES = ("srgb", "linear")  # how the brightness observation reads pixel values (fitode.video.light)
 INTEGRATOR_NAMES = ("rk4", "symplectic", "euler")
 INTEGRATOR_ALIASES = {"paper": "symplectic", "semi-implicit": "symplectic", "semi_implicit": "symplectic",

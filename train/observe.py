@@ -44,6 +44,7 @@ class Prepared:
     components: np.ndarray  # (T, SCORE_COMPONENTS) leading principal-component coefficients
     rank: int
     note: str  # one line: the subspace kept and why
+    caution: str | None = None  # a reason the measurement may be off (an object too small), for the verdict
 
 
 class ObservationModel:
@@ -51,6 +52,12 @@ class ObservationModel:
 
     name = "any"
     architecture: str | None = None  # the encoder it needs; None: any (--encoder decides)
+    # The latent is a geometric measurement (a centroid, a radius) read linearly: it cannot fold
+    # or bend, so the restart score (train/score.py), which asks whether a free latent follows
+    # the frames, has nothing to judge; and on a short fast clip (a 30-frame fall) the frames a
+    # few steps apart that the score compares never look alike, so it would call a right
+    # latent wrong.
+    geometric = False
 
     def __init__(self, subspace: bool = True):
         self.subspace = subspace
@@ -168,6 +175,7 @@ class PositionObservation(ObservationModel):
 
     name = "position"
     architecture = "linear"
+    geometric = True
 
     def encoder(self, architecture: str, in_shape: tuple[int, int, int], dim: int, seeds,
                 output_mean: float = 0.0, output_std: float = 1.0) -> BatchedEncoder:
@@ -195,6 +203,56 @@ class PositionObservation(ObservationModel):
         note = (f"position: the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
                 f"average), along its line of motion ({angle:.0f} degrees from the image's x axis), read linearly")
         return Prepared(z.to(frames.dtype).reshape(-1, 1, 1, 1), out.components, 1, note)
+
+
+class SizeObservation(PositionObservation):
+    """The camera sees how large something looks: the latent is affine in its apparent radius
+    (train/extent.py), for what grows or shrinks in place (the paper's scale videos, a balloon,
+    a spreading drop). Read linearly like a position: no encoder can bend the size into
+    another law."""
+
+    name = "size"
+    how = "read linearly"
+
+    def reading(self, radius: torch.Tensor) -> torch.Tensor:
+        return radius
+
+    def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
+        from .extent import SMALL, apparent_radii
+        out = ObservationModel.prepare(self, frames, architecture, fit_frames)  # the components the checks score against
+        radius, _, unseen = apparent_radii(frames)
+        if unseen > 0.1 * frames.shape[0]:
+            raise ConfigError(f"the {self.name} observation sees no outline change in {unseen} of {frames.shape[0]} "
+                              "frames (the object keeps its size); trim the clip to the motion (--start/--end) or "
+                              "observe 'any'")
+        if float(radius.min()) < 0.5:
+            raise ConfigError(f"the {self.name} observation measured an apparent radius of {float(radius.min()):.2f} "
+                              "pixels: nothing in view grows or shrinks; observe 'position' or 'any'")
+        n_fit = radius.shape[0] if fit_frames is None else int(fit_frames)
+        value = self.reading(radius)
+        z = (value - value[:n_fit].mean()) / value[:n_fit].std().clamp_min(1e-12)
+        smallest = float(radius[:n_fit].min())
+        note = (f"{self.name}: the apparent radius of the outline that grows or shrinks ({smallest:.1f} to "
+                f"{float(radius[:n_fit].max()):.1f} pixels), {self.how}")
+        caution = None
+        if smallest < SMALL:
+            caution = (f"the object is {smallest:.1f} pixels in radius at its smallest, and the blur shrinks a "
+                       f"measured radius under {SMALL:g} pixels (by 15-20% at 2): give a larger --size or "
+                       "--roi around the object")
+        return Prepared(z.to(frames.dtype).reshape(-1, 1, 1, 1), out.components, 1, note, caution)
+
+
+class DistanceObservation(SizeObservation):
+    """The camera sees how large something looks as it moves along the line of sight: a pinhole
+    camera sees an object of radius R at distance d with radius f R / d, so the latent is affine
+    in the reciprocal of the apparent radius (a fall towards or away from the camera: the
+    paper's free-fall-scale videos)."""
+
+    name = "distance"
+    how = "read as its reciprocal, affine in the distance from the camera"
+
+    def reading(self, radius: torch.Tensor) -> torch.Tensor:
+        return 1.0 / radius
 
 
 CORE = 0.7
@@ -264,7 +322,8 @@ def _centroids(gray: torch.Tensor, background: torch.Tensor) -> tuple[torch.Tens
     return torch.stack([cx, cy], dim=1), heat
 
 
-OBSERVATIONS = {"any": ObservationModel, "brightness": BrightnessObservation, "position": PositionObservation}
+OBSERVATIONS = {"any": ObservationModel, "brightness": BrightnessObservation, "position": PositionObservation,
+                "size": SizeObservation, "distance": DistanceObservation}
 assert ("auto",) + tuple(OBSERVATIONS) == OBSERVE_CHOICES, "train/config.py lists the models the CLI offers"
 
 # The auto choice looks at where the frames change (the heat map of PositionObservation): a

@@ -26,7 +26,7 @@ from .result import Estimate, FitResult, RunRecord
 from .score import dominant_period, separation_score
 from .selection import select_runs
 from .starts import CANDIDATES, data_starts
-from .verdict import judge, video_checks
+from .verdict import Finding, judge, video_checks
 
 DATA_STARTS = 2  # restarts that start from the data search (fitode.train.starts), when there are enough
 SCORE_EXCLUDE = 2  # frames either side left out of the score's neighbours (see fitode.train.score)
@@ -104,7 +104,8 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         rec.origin = origin
     for r in records:
         if r.status != "failed":
-            r.score = separation_score(latents[r.index, :n_train], coefs, exclude=SCORE_EXCLUDE)
+            if not observation.geometric:
+                r.score = separation_score(latents[r.index, :n_train], coefs, exclude=SCORE_EXCLUDE)
             var = float(np.var(latents[r.index, :n_train], axis=0).sum())
             r.miss = r.history.mse[-1] / var if r.history.mse and var > 0 else None
     interrupted = late or any(r.status == "interrupted" for r in records)
@@ -126,7 +127,9 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
     findings, numbers = video_checks(latents[best, :n_train], rollouts[best, :n_train], coefs, dt,
                                      records[best].score, oscillator=system.max_order >= 2,
                                      encoder=config.encoder, rank=prepared.rank, miss=records[best].miss,
-                                     observation=observation.name)
+                                     observation=observation.name, geometric=observation.geometric)
+    if prepared.caution:
+        findings.append(Finding("ambiguous", prepared.caution))
     verdicts = judge(system.learnable, records, selected, {n: e.value for n, e in estimates.items()}, findings,
                      analysis=analyse(system))
     return FitResult(

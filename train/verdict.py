@@ -64,14 +64,15 @@ class Verdict:
 
 def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt: float, score: float | None,
                  oscillator: bool, encoder: str = "mlp", rank: int = 0,
-                 miss: float | None = None, observation: str = "any") -> tuple[list[Finding], dict[str, float | None]]:
+                 miss: float | None = None, observation: str = "any",
+                 geometric: bool = False) -> tuple[list[Finding], dict[str, float | None]]:
     """Findings that hold for every constant, from the best run's latent and rollout (training
     frames only), the frames' principal components, the encoder's architecture and the rank of
     the signal subspace it read, and the best run's window miss (RunRecord.miss); and the numbers
-    behind them."""
+    behind them. geometric: the latent is a measured position or size read linearly (no score)."""
     findings: list[Finding] = []
     numbers: dict[str, float | None] = {"score": score}
-    if score is None or not math.isfinite(score) or score < SCORE_MIN:
+    if not geometric and (score is None or not math.isfinite(score) or score < SCORE_MIN):
         shown = "nan" if score is None or not math.isfinite(score) else f"{score:.2f}"
         findings.append(Finding("not trustworthy", f"no restart's latent tells the frames apart (best score {shown}; "
                                 "a latent that follows what the video shows scores above "
@@ -198,8 +199,9 @@ def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[st
         worst = found[0] if found else None
         if worst is None:
             agree = f"{len(sel)} restart{'s' if len(sel) != 1 else ''} agree" if len(sel) > 1 else "one restart"
-            shown = f"{best_score:.2f}" if best_score is not None else "n/a"
-            out[name] = Verdict("trusted", f"{agree}; the latent tells the frames apart (score {shown})")
+            why = (f"the latent tells the frames apart (score {best_score:.2f})" if best_score is not None
+                   else "the latent is a measured position or size, read linearly")
+            out[name] = Verdict("trusted", f"{agree}; {why}")
         else:
             more = f" (and {len(found) - 1} more reason{'s' if len(found) > 2 else ''})" if len(found) > 1 else ""
             out[name] = Verdict(worst.level, worst.reason + more, tuple(f.reason for f in found[1:]))
