@@ -295,9 +295,50 @@ def refit_constants(system, params: Mapping[str, Any], x: np.ndarray, dt: float,
     """
     import torch
 
+    torch.manual_seed(seed)
+    make, loss_of, evaluate = _window_problem(system, params, x, dt, window, integrator, substeps, max_windows)
+    names = list(system.learnable)
+    powers = [-2.0, -1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0]
+    signs = [1.0, -1.0] if flip else [1.0]
+    choices = [[1.0] if n in scale_free else [s * scale ** p for p in powers for s in signs] for n in names]
+    combos = list(itertools.product(*choices))
+    if len(combos) > 600:  # many scale-dependent constants: a seeded sample of the grid
+        rng = np.random.default_rng(seed)
+        keep = rng.choice(len(combos), 599, replace=False)
+        combos = [tuple(1.0 for _ in names)] + [combos[i] for i in keep]
+    scored = []
+    for combo in combos:
+        cand = {n: float(start[n]) * m for n, m in zip(names, combo)}
+        scored.append((evaluate(cand), cand))
+    scored.sort(key=lambda s: s[0])
+    finite = [c for v, c in scored if math.isfinite(v)]
+    if not finite:
+        raise CalibrationError("the equation cannot reproduce the calibrated trajectory from any starting point "
+                               "(it leaves the equation's domain); check the calibration values")
+    best_vals, best_loss = None, math.inf
+    for cand in finite[:2]:
+        vals, loss = _refine(make(cand), loss_of, steps)
+        if loss < best_loss:
+            best_vals, best_loss = vals, loss
+    if best_vals is None:
+        raise CalibrationError("the re-fit of the constants on the calibrated trajectory did not converge")
+    return best_vals, best_loss
+
+
+def window_loss(system, params: Mapping[str, Any], x: np.ndarray, dt: float, values: Mapping[str, float], *,
+                window: int = 20, integrator: str = "rk4", substeps: int = 1, max_windows: int = 128) -> float:
+    """The loss refit_constants minimises, for the given constants (inf outside their domain)."""
+    return _window_problem(system, params, x, dt, window, integrator, substeps, max_windows)[2](values)
+
+
+def _window_problem(system, params, x: np.ndarray, dt: float, window: int, integrator: str, substeps: int,
+                    max_windows: int):
+    """(make, loss_of, evaluate) for fitting constants to windows of the trajectory x (T, d): the
+    physics block rolled out from each window's first frames reproduces the rest of the window."""
+    import torch
+
     from fitode.codegen import PhysicsBlock
 
-    torch.manual_seed(seed)
     xt = torch.as_tensor(np.asarray(x, dtype=np.float64), dtype=torch.float32)
     T = xt.shape[0]
     window = min(window, T)
@@ -335,32 +376,7 @@ def refit_constants(system, params: Mapping[str, Any], x: np.ndarray, dt: float,
             return math.inf
         return v if math.isfinite(v) else math.inf
 
-    names = list(system.learnable)
-    powers = [-2.0, -1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0]
-    signs = [1.0, -1.0] if flip else [1.0]
-    choices = [[1.0] if n in scale_free else [s * scale ** p for p in powers for s in signs] for n in names]
-    combos = list(itertools.product(*choices))
-    if len(combos) > 600:  # many scale-dependent constants: a seeded sample of the grid
-        rng = np.random.default_rng(seed)
-        keep = rng.choice(len(combos), 599, replace=False)
-        combos = [tuple(1.0 for _ in names)] + [combos[i] for i in keep]
-    scored = []
-    for combo in combos:
-        cand = {n: float(start[n]) * m for n, m in zip(names, combo)}
-        scored.append((evaluate(cand), cand))
-    scored.sort(key=lambda s: s[0])
-    finite = [c for v, c in scored if math.isfinite(v)]
-    if not finite:
-        raise CalibrationError("the equation cannot reproduce the calibrated trajectory from any starting point "
-                               "(it leaves the equation's domain); check the calibration values")
-    best_vals, best_loss = None, math.inf
-    for cand in finite[:2]:
-        vals, loss = _refine(make(cand), loss_of, steps)
-        if loss < best_loss:
-            best_vals, best_loss = vals, loss
-    if best_vals is None:
-        raise CalibrationError("the re-fit of the constants on the calibrated trajectory did not converge")
-    return best_vals, best_loss
+    return make, loss_of, evaluate
 
 
 def _refine(block, loss_of, steps: int) -> tuple[dict[str, float] | None, float]:

@@ -21,6 +21,7 @@ from fitode.errors import TrainingError
 from . import interrupts
 from .config import TrainConfig, resolve_encoder
 from .loop import Callback, StepInfo, Trained, encode_all, train_restarts
+from .holds import whole_clip_check
 from .observe import ObservationModel, resolve_observation
 from .result import Estimate, FitResult, RunRecord
 from .score import dominant_period, separation_score
@@ -97,7 +98,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         trained = train_restarts(frames[:n_train], dt, system, params, config, inits, seeds=seeds,
                                  observation=observation, plan=plan, callback=callback, progress=progress,
                                  targets=targets)
-        latents, rollouts = _trajectories(trained, frames, dt)
+        latents, rollouts, states = _trajectories(trained, frames, dt)
         late = interrupts.pending()  # a signal after the last step: the fit finished, but the user asked to stop
     records = trained.records
     for rec, origin in zip(records, origins):
@@ -130,6 +131,11 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
                                      observation=observation.name, geometric=observation.geometric)
     if prepared.caution:
         findings.append(Finding("ambiguous", prepared.caution))
+    if observation.geometric and not interrupted:
+        holds, numbers["whole_clip"] = whole_clip_check(system, params, states[best, :n_train], dt,
+                                                        records[best].final, config)
+        if holds is not None:
+            findings.append(holds)
     verdicts = judge(system.learnable, records, selected, {n: e.value for n, e in estimates.items()}, findings,
                      analysis=analyse(system))
     return FitResult(
@@ -173,12 +179,14 @@ def _threads(n: int | None):
 
 
 @torch.no_grad()
-def _trajectories(trained: Trained, frames: torch.Tensor, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Every restart's latent for every frame (R, T, d), and its physics rollout from the first
-    frames (in latent units; NaN where a long extrapolation leaves the equation's domain)."""
+def _trajectories(trained: Trained, frames: torch.Tensor, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every restart's latent for every frame (R, T, d), its physics rollout from the first
+    frames (in latent units; NaN where a long extrapolation leaves the equation's domain), and
+    its latent as the equation's state (the gauge applied)."""
     encoder, block, gauge = trained.encoder, trained.block, trained.gauge
     encoder.eval()
     latent = encode_all(encoder, frames)
     head = gauge.to_state(latent[:, None, : block.n_context])
     rollout = gauge.to_latent(block(head, frames.shape[0], dt)[:, 0])
-    return latent.cpu().double().numpy(), rollout.cpu().double().numpy()
+    states = gauge.to_state(latent[:, None])[:, 0]
+    return latent.cpu().double().numpy(), rollout.cpu().double().numpy(), states.cpu().double().numpy()

@@ -183,6 +183,8 @@ def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[st
                                  + ", ".join(f"{v:.4g}" for v in vals)))
         misses = [r.miss for r in sel if r.miss is not None]
         best_miss = min(misses) if misses else math.inf
+        # a measured latent (no scores) is the same line for every restart, so the loss compares
+        # them directly: the restarts left out fit it worse, and none is a rival
         rivals = [r for r in runs if r.index not in selected and r.status == "ok" and name in r.final
                   and best_score is not None and r.score is not None and r.score >= best_score - SCORE_MARGIN
                   and (r.miss is None or r.miss <= RIVAL_MISS * best_miss)

@@ -1,0 +1,39 @@
+"""The whole-clip check: one set of constants must hold over both halves of a measured latent."""
+from __future__ import annotations
+
+import numpy as np
+
+from fitode.eqparse import parse
+from fitode.train.config import TrainConfig
+from fitode.train.holds import trajectory_fit, whole_clip_check
+
+
+def _fall(drag: float, n: int = 80, dt: float = 1 / 120, noise: float = 0.002, seed: int = 0) -> np.ndarray:
+    """Distance fallen (m) by a ball with d'' = 9.81 - drag*d'^2, fine Euler steps, plus noise."""
+    rng = np.random.default_rng(seed)
+    d, v, out = 0.0, 0.0, []
+    for _ in range(n):
+        out.append(d)
+        for _ in range(100):
+            v += (9.81 - drag * v * v) * dt / 100
+            d += v * dt / 100
+    return (np.array(out) + noise * rng.standard_normal(n))[:, None]
+
+
+def test_a_clean_fall_holds_and_its_constant_comes_with_an_error():
+    system, config = parse("d'' = g", free=["g"]), TrainConfig()
+    x = _fall(0.0)
+    values, errors = trajectory_fit(system, {}, x, 1 / 120, {"g": 5.0}, config)
+    assert abs(values["g"] - 9.81) < 3 * errors["g"] and 0 < errors["g"] < 0.5
+    finding, numbers = whole_clip_check(system, {}, x, 1 / 120, {"g": 9.8}, config)
+    assert finding is None and len(numbers["g"]) == 4
+
+
+def test_a_fall_slowed_by_the_air_does_not_hold_with_one_g():
+    # a light ball (terminal velocity 4 m/s): g from its first half is far from g from its second
+    system, config = parse("d'' = g", free=["g"]), TrainConfig()
+    finding, numbers = whole_clip_check(system, {}, _fall(9.81 / 16), 1 / 120, {"g": 7.0}, config)
+    assert finding is not None and finding.level == "ambiguous"
+    assert "does not hold over the whole clip" in finding.reason
+    first, _, second, _ = numbers["g"]
+    assert first > second + 1

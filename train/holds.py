@@ -1,0 +1,113 @@
+"""Does the equation hold over the whole clip? One trajectory against the measured latent.
+
+A measured latent (a centroid, a radius: observe.py's geometric models) is what the camera saw,
+whatever the equation says, so an equation that does not describe the motion does not show as a
+bent latent: the windows' fit settles on constants that average over the clip, every restart
+agrees, and the number looks trusted. The real slow-motion ball drop is the case in point: in
+its last fifth the ball falls visibly behind the parabola of its first frames (a light ball in
+air; a camera that looks at the wall at an angle), and the whole clip gives g = 8.0 m/s^2
+(-18%) with three restarts agreeing.
+
+Short windows cannot see it: over 20 frames the misfit hides under the noise of the velocity
+each window starts from, and a miss measured against the noise depends on how the noise of
+neighbouring frames hangs together (motion blur, the codec). The constants say it plainly: the
+clip is cut in two and each half is fitted as one trajectory of the equation (its starting
+state and constants both free, from the fit's values; L-BFGS), with a standard error. Where a
+constant differs between the halves by more than SIGMAS standard errors and more than HALF_TOL
+of its value, one set of constants does not hold over the clip, and the verdict says so.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+import numpy as np
+
+from .verdict import Finding
+
+HALF_TOL = 0.05
+SIGMAS = 3.0
+ITERATIONS = 100
+
+
+def whole_clip_check(system, params: Mapping, state: np.ndarray, dt: float, start: Mapping[str, float],
+                     config) -> tuple[Finding | None, dict[str, list[float]]]:
+    """The finding (None where the halves agree, or a half could not be fitted) and the numbers
+    behind it: each constant fitted as one trajectory on the first and on the second half of
+    state (T, d), with its standard error."""
+    x = np.asarray(state, dtype=np.float64)
+    half = x.shape[0] // 2
+    if half < 8 or not np.all(np.isfinite(x)):
+        return None, {}
+    halves = [trajectory_fit(system, params, part, dt, start, config) for part in (x[:half], x[half:])]
+    if any(h is None for h in halves):
+        return None, {}
+    numbers = {n: [halves[0][0][n], halves[0][1][n], halves[1][0][n], halves[1][1][n]] for n in system.learnable}
+    apart = []
+    for n, (a, se_a, b, se_b) in numbers.items():
+        gap = abs(a - b)
+        if gap > HALF_TOL * max(abs(float(start[n])), 1e-12) and gap > SIGMAS * math.hypot(se_a, se_b):
+            apart.append(f"{n} {a:.4g} +- {se_a:.2g} on the first half and {b:.4g} +- {se_b:.2g} on the second")
+    if not apart:
+        return None, numbers
+    return Finding("ambiguous", "one set of constants does not hold over the whole clip: fitted as one trajectory, "
+                   + "; ".join(apart) + " (in the fit's own units): drag, a camera at an angle to the motion or a "
+                   "missing term changes the motion; fit only the part where the equation holds (--start/--end) "
+                   "or extend the equation"), numbers
+
+
+def trajectory_fit(system, params: Mapping, x: np.ndarray, dt: float, start: Mapping[str, float],
+                   config) -> tuple[dict[str, float], dict[str, float]] | None:
+    """The constants of the single trajectory of the equation that best follows x (T, d), and
+    their standard errors: its starting state and its constants both free, from x's first frames
+    and `start` (L-BFGS). The errors come from the Jacobian (least squares' covariance), widened
+    for residuals that hang together from frame to frame (by (1 + r) / (1 - r) for a lag-one
+    correlation r). None where it cannot be fitted (it leaves the equation's domain)."""
+    import torch
+    from torch.func import functional_call
+
+    from fitode.codegen import PhysicsBlock
+    from fitode.errors import FitodeError
+
+    xt = torch.as_tensor(x)
+    root = (1.0 / xt.var(dim=0).clamp_min(1e-24)).sqrt()  # every state counts equally, whatever its units
+    try:
+        block = PhysicsBlock(system, params, integrator=config.integrator, substeps=config.substeps).double()
+        block.set_constants(dict(start))
+        context = xt[: block.n_context].clone().requires_grad_(True)
+        named = [(k, p) for k, p in block.named_parameters() if p.requires_grad]
+        opt = torch.optim.LBFGS([p for _, p in named] + [context], lr=0.5, max_iter=ITERATIONS,
+                                line_search_fn="strong_wolfe")
+
+        def closure():
+            opt.zero_grad(set_to_none=True)
+            value = torch.mean(((block(context[None], x.shape[0], dt)[0] - xt) * root) ** 2)
+            value.backward()
+            return value
+        opt.step(closure)
+        sizes = [p.numel() for _, p in named] + [context.numel()]
+        flat = torch.cat([p.detach().flatten() for _, p in named] + [context.detach().flatten()])
+
+        def residual(v):
+            parts = list(torch.split(v, sizes))
+            swapped = {k: part.view_as(p) for (k, p), part in zip(named, parts[:-1])}
+            out = functional_call(block, swapped, (parts[-1].view_as(context)[None], x.shape[0], dt))[0]
+            return ((out - xt) * root).flatten()
+        r = residual(flat).detach()
+        jac = torch.autograd.functional.jacobian(residual, flat)
+        dof = max(r.numel() - flat.numel(), 1)
+        lag = float((r[1:] @ r[:-1]) / (r @ r).clamp_min(1e-300)) if r.numel() > 2 else 0.0
+        lag = min(max(lag, 0.0), 0.95)
+        cov = torch.linalg.pinv(jac.T @ jac) * float(r @ r) / dof * (1 + lag) / (1 - lag)
+        values, errors = {}, {}
+        for name, value in block.constants().items():
+            grads = torch.autograd.grad(value, [p for _, p in named], allow_unused=True)
+            g = torch.cat([(gr if gr is not None else torch.zeros_like(p)).flatten()
+                           for gr, (_, p) in zip(grads, named)] + [torch.zeros(context.numel(), dtype=flat.dtype)])
+            values[name] = float(value.detach())
+            errors[name] = float((g @ cov @ g).clamp_min(0).sqrt())
+    except (FitodeError, RuntimeError, FloatingPointError):
+        return None
+    finite = np.all(np.isfinite(list(values.values()) + list(errors.values())))
+    return (values, errors) if finite else None
