@@ -130,13 +130,15 @@ CLIPS: dict[str, Clip] = {c.name: c for c in [
          fitode_args=["--system", "pendulum"], fitode_param="L"),
     Clip("freefall_balldrop_slowmo120.mp4", "freefall", RED_BALL, fps=120.0,
          stated={"g": (9.81, "9.81 (author's own fit 8.78)")},
-         fitode_args=["--system", "free_fall_scale", "--fps", "120"], fitode_param="g"),
+         # the README's command: release at the ceiling (frame 118), the floor at frame 199, 232 cm apart
+         fitode_args=["--eq", "d'' = g", "--free", "g", "--fps", "120", "--start", "0.98", "--end", "1.66",
+                      "--calibrate", "d(0.984)=0.02; d(1.658)=2.30"], fitode_param="g"),
     Clip("draining_bottle_hole7mm.mp4", "bottle", RED_WATER,
          stated={"k": (None, "none (7 mm hole, 16.5 cm tall)")},
          fitode_args=["--system", "torricelli", "--start", "3"], fitode_param="k"),
     Clip("bouncing_ball.avi", "bounce", GREEN,
          stated={"g": (9.81, "9.81 (G in the script)")},
-         fitode_args=["--system", "free_fall_scale"], fitode_param="g"),
+         fitode_args=["--eq", "y'' = g", "--free", "g"], fitode_param="g"),
 ]}
 
 
@@ -466,17 +468,19 @@ def fitode_calibration(clip: Clip, m: dict[str, Any]) -> list[str]:
     """--start/--end/--calibrate for the scale-dependent fits, from the tracker's own fit (two
     positions a user would read off a ruler)."""
     f = m["fit"]
+    if "--calibrate" in clip.fitode_args:  # the documented command calibrates from the scene itself
+        return []
     if clip.kind in ("freefall", "bounce"):
         fps = clip.fps or f.get("fps")
         t0, t1 = f["start_frame"] / fps, f["end_frame"] / fps
         mpp = f["m_per_px"]
 
-        def d(t):  # metres fallen from the first frame, by the tracker's parabola
+        def y(t):  # metres fallen from the first frame, by the tracker's parabola
             tt = t - f["t_start"]
             return (f["v0"] * tt + f["g_px"] * tt * tt / 2) * mpp
 
         return ["--start", f"{t0:.4f}", "--end", f"{t1:.4f}",
-                "--calibrate", f"d({t0:.4f})={d(t0):.4f}; d({t1:.4f})={d(t1):.4f}"]
+                "--calibrate", f"y({t0:.4f})={y(t0):.4f}; y({t1:.4f})={y(t1):.4f}"]
     if clip.kind == "bottle":
         t0, t1 = f["t_start"], f["t_end"]
 
@@ -510,7 +514,7 @@ def run_fitode(path: Path, clip: Clip, m: dict[str, Any], out_dir: Path, timeout
         return rec
     par = (result.get("parameters") or {}).get(clip.fitode_param) or {}
     rec.update({"value": par.get("value"), "std": par.get("std"), "unit": par.get("unit"),
-                "calibrated": par.get("calibrated"), "status": result.get("status"),
+                "calibrated": par.get("calibrated"), "status": result.get("status"), "verdict": par.get("verdict"),
                 "warnings": result.get("warnings", [])})
     return rec
 
@@ -626,7 +630,8 @@ def run(args: argparse.Namespace) -> int:
             fit_txt = ""
             if key == clip.fitode_param or (key == "L" and clip.fitode_param == "L"):
                 f = rec.get("fitode")
-                fit_txt = ("not run" if f is None else f.get("error") or _fmt(f.get("value"), f.get("std")))
+                fit_txt = ("not run" if f is None else f.get("error")
+                           or f"{_fmt(f.get('value'), f.get('std'))} ({f.get('verdict') or 'no verdict'})")
             table.append({"clip": name, "quantity": r["quantity"], "tracker": _fmt(r["value"], r["err"]),
                           "stated": stated, "fitode": fit_txt})
         bc.progress(f"{name}: done in {time.perf_counter() - t0:.0f} s")

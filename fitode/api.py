@@ -35,8 +35,10 @@ def fit(frames, dt: float, *, eq: str | None = None, system: str | OdeSystem | N
     fitode.ConfigError naming it, before any work.
     """
     ode, spec_params, spec_prior, spec_observe = _equation(eq, system, eq_file, const, free)
-    if observe is None:
-        observe = spec_observe
+    if observe is None and spec_observe not in (None, "auto"):
+        from fitode.train.observe import resolve_observation
+        observe = resolve_observation(spec_observe, ode, light=options.get("light", "srgb"),
+                                      source="from the equation file")
     if params is not None:
         spec_params = {**spec_params, **params}
     config = checked_config(ode, options, prior=prior, default_prior=spec_prior, init=init,

@@ -95,8 +95,9 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
 
     from fitode.api import as_frames
     from fitode.train.observe import resolve_observation
-    observation = resolve_observation(observe or (spec.observe if spec is not None else None), ode,
-                                      as_frames(clip.frames[:n_train]), config.light, config.encoder)
+    named = spec.observe if observe is None and spec is not None else None
+    observation = resolve_observation(observe or named, ode, as_frames(clip.frames[:n_train]), config.light,
+                                      config.encoder, source="from the equation file" if named else "as asked")
     settings = {**config.as_dict(), "train_fraction": train_fraction, "observe": observation.name}
     for line in rep.understanding_lines(ode, spec, analysis, clip, n_train, settings, observation):
         say(line)

@@ -192,7 +192,7 @@ def test_a_constant_that_changes_sign_with_the_state_is_compared_in_one_orientat
 def test_the_api_takes_the_equation_files_observation():
     frames = _frames("move").numpy()  # auto would not call this brightness
     res = fitode.fit(frames, 0.1, system="led_decay", restarts=1, max_steps=5, min_steps=5, progress=False)
-    assert res.meta["observation"] == "brightness" and "as asked" in res.meta["observation_reason"]
+    assert res.meta["observation"] == "brightness" and "from the equation file" in res.meta["observation_reason"]
     res = fitode.fit(frames, 0.1, system="led_decay", observe="any", restarts=1, max_steps=5, min_steps=5,
                      progress=False)
     assert res.meta["observation"] == "any"
@@ -258,7 +258,13 @@ def test_a_ball_falling_away_from_the_camera_gives_g_through_the_distance_observ
     assert cli.main([str(video), "--system", "free_fall_scale", "--out", str(out),
                      "--calibrate", f"d(0)={d[0]:.5f}; d({t_end:.6f})={d[-1]:.5f}"]) == 0
     printed = capsys.readouterr().out
-    assert "observation: distance (as asked)" in printed and "read as its reciprocal" in printed
+    assert "observation: distance (from the equation file)" in printed and "read as its reciprocal" in printed
     g = json.loads((out / "result.json").read_text())["parameters"]["g"]
     assert abs(g["value"] / 9.80665 - 1) < 0.05, g
     assert g["verdict"] == "trusted", g
+
+
+def test_check_names_the_distance_observation_of_the_free_fall_file(capsys):
+    assert cli.main(["check", "--system", "free_fall_scale"]) == 0
+    out = capsys.readouterr().out
+    assert "distance (from the equation file)" in out and "f R / d" in out

@@ -336,11 +336,11 @@ LOOK_FRAMES = 256
 
 
 def resolve_observation(spec: str | ObservationModel | None, system, frames: torch.Tensor | None = None,
-                        light: str = "srgb", encoder: str = "auto") -> ObservationModel:
+                        light: str = "srgb", encoder: str = "auto", source: str = "as asked") -> ObservationModel:
     """The observation model a fit uses, with its reason: an instance as given, a name, or "auto"
     (None): position where the change moves one way, brightness for a single first-order linear
     equation whose frames brighten or dim as one, any otherwise (and wherever an encoder other
-    than linear was asked for)."""
+    than linear was asked for). source: where a named model came from, for its reason."""
     if isinstance(spec, ObservationModel):
         spec.reason = spec.reason or f"{spec.name} (as given)"
         return spec
@@ -349,7 +349,7 @@ def resolve_observation(spec: str | ObservationModel | None, system, frames: tor
         raise ConfigError(f"unknown observation model {name!r}; choose one of {', '.join(OBSERVE_CHOICES)}")
     if name != "auto":
         model = BrightnessObservation(light) if name == "brightness" else OBSERVATIONS[name]()
-        model.reason = f"{name} (as asked)"
+        model.reason = f"{name} ({source})"
         return model
     if encoder not in ("auto", "linear"):
         model = ObservationModel()
