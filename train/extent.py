@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import torch
 
+from .observe import _noise
+
 EDGE_CORE = 0.5
 ROUNDS = 5
 SMALL = 3.0  # pixels: below this apparent radius the blur biases the measure
@@ -40,7 +42,7 @@ def apparent_radii(frames: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, in
     if gray.shape[0] < 3:
         raise ValueError("the size of an object needs at least 3 frames")
     change = torch.cat([gray[1:2] - gray[:1], gray[2:] - gray[:-2], gray[-1:] - gray[-2:-1]]).abs()
-    noise = 1.4826 * change.flatten().median() + 1e-12
+    noise = _noise(change)
     floor = torch.maximum(3 * noise, EDGE_CORE * change.flatten(1).max(dim=1).values)[:, None, None]
     heat = torch.where(change > floor, change, torch.zeros_like(change))
     mass = heat.sum(dim=(1, 2))
