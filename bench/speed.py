@@ -107,7 +107,7 @@ class Stepper:
         from fitode.train.trainer import TrainConfig
         from fitode.train.windows import Windows
 
-        self.cfg = cfg = TrainConfig()
+        self.cfg = cfg = TrainConfig(window=20)
         torch.manual_seed(seed)
         self.mode, self.dt = mode, float(dt)
         self.x = normalise_frames(as_frames(frames))
@@ -337,7 +337,7 @@ def time_restarts(task: dict[str, Any]) -> list[dict[str, Any]]:
             prepared = ObservationModel().prepare(as_frames(frames).to(device))
             for n in task["restarts"]:
                 stamps: list[float] = []
-                cfg = TrainConfig(max_steps=task["steps"], min_steps=task["steps"], horizon_warmup=0,
+                cfg = TrainConfig(max_steps=task["steps"], min_steps=task["steps"], horizon_warmup=0, window=20,
                                   check_every=5, restarts=n, encoder="mlp", device=device)
                 inits = [{"g0": 1.0 + 0.1 * i, "g1": 0.5} for i in range(n)]
                 train_restarts(prepared.inputs, dt, system, {}, cfg, inits, seeds=list(range(n)),

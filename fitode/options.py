@@ -149,7 +149,9 @@ def add_training_arguments(parser: argparse.ArgumentParser, *, title: str = "tra
     for name in fields:
         metavar, text = _TRAINING_HELP[name]
         default = defaults[name]
-        shown = "torch's choice" if default is None else (f"{default:g}" if isinstance(default, float) else default)
+        unset = {"window": "auto: at least 20, and long enough to span the dynamics' time constant"}
+        shown = (unset.get(name, "torch's choice") if default is None
+                 else (f"{default:g}" if isinstance(default, float) else default))
         kwargs = dict(help=f"{text} (default {shown})", default=None)
         if name in names:
             kwargs["choices"] = names[name]

@@ -85,6 +85,9 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
     n_train = max(int(round(train_fraction * n_frames)), 1)
     if n_frames == 0:
         raise FitodeError(f"{video}: no frames to fit (check --start/--end)")
+    from fitode.train.horizon import resolve_window
+    config, window_reason = resolve_window(config, clip.frames[:n_train], clip.dt)
+    train_options["window"] = config.window
     if n_train < config.window + 1:
         raise FitodeError(f"{n_train} training frames are fewer than one window of {config.window} frames plus one; "
                           "use a longer clip, a smaller --stride or a smaller --window")
@@ -98,7 +101,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
     named = spec.observe if observe is None and spec is not None else None
     observation = resolve_observation(observe or named, ode, as_frames(clip.frames[:n_train]), config.light,
                                       config.encoder, source="from the equation file" if named else "as asked")
-    settings = {**config.as_dict(), "train_fraction": train_fraction, "observe": observation.name}
+    settings = {**config.as_dict(), "train_fraction": train_fraction, "observe": observation.name,
+                "window_reason": window_reason}
     for line in rep.understanding_lines(ode, spec, analysis, clip, n_train, settings, observation):
         say(line)
 

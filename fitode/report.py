@@ -110,6 +110,8 @@ def understanding_lines(ode, spec, analysis, clip, n_train: int, settings: Mappi
     lines.append(f"training: {settings['restarts']} restarts, up to {settings['max_steps']} steps, window "
                  f"{settings['window']} frames, {settings['integrator']} integrator, {settings['device']}, "
                  f"seed {settings['seed']}")
+    if settings.get("window_reason"):
+        lines.append(f"window: {settings['window_reason']}")
     if observation is not None:
         lines.append(f"observation: {observation.reason}")
         if getattr(observation, "light", None) == "srgb":

@@ -61,7 +61,7 @@ def error_cases(tmp: Path, video: Path, short: Path) -> dict[str, list]:
         "missing file": [tmp / "nope.mp4", *eq],
         "unreadable video": [tmp / "not-a-video.mp4", *eq],
         "zero frames": [tmp / "empty.npy", "--fps", "10", *eq],
-        "fewer frames than a window": [short, *eq, "--stride", "1"],
+        "fewer frames than a window": [short, *eq, "--stride", "1", "--window", "20"],
         "unknown flag": [video, *eq, "--bogus"],
         "no equation": [video],
         "two equations": [video, *eq, "--system", "pendulum"],

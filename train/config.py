@@ -28,7 +28,7 @@ DEVICE_NAMES = ("cpu", "cuda")
 class TrainConfig:
     """Every training option. Invalid values raise ConfigError (a FitodeError) naming the option.
 
-    window: frames per training window. max_steps: step limit per restart. min_steps: no stop
+    window: frames per training window (None: chosen from the frames, train/horizon.py). max_steps: step limit per restart. min_steps: no stop
     before this step. lr: the encoder's Adam learning rate. const_lr: base learning rate of the
     constants (scaled per constant, see fitode.codegen.constants). batch_windows: windows per
     step (None: all). use_kl: the KL term (off only for the paper's ablation). prior: (mean, std)
@@ -50,7 +50,7 @@ class TrainConfig:
     host synchronisation).
     """
 
-    window: int = 20
+    window: int | None = None
     max_steps: int = 2000
     min_steps: int = 200
     lr: float = 1e-4
@@ -76,11 +76,13 @@ class TrainConfig:
     check_every: int = 10
 
     def __post_init__(self) -> None:
-        for name in ("window", "max_steps", "restarts", "substeps", "patience", "check_every"):
+        for name in ("max_steps", "restarts", "substeps", "patience", "check_every"):
             _positive_int(name, getattr(self, name))
         for name in ("min_steps", "horizon_warmup", "seed"):
             _int_at_least(name, getattr(self, name), 0)
-        if self.window < 3:
+        if self.window is not None:
+            _positive_int("window", self.window)
+        if self.window is not None and self.window < 3:
             raise ConfigError(f"window must be at least 3 frames, got {self.window}")
         if self.batch_windows is not None:
             _positive_int("batch_windows", self.batch_windows)

@@ -32,6 +32,7 @@ from .observe import ObservationModel
 from .optim import BatchedAdam
 from .result import RunRecord
 from .stopping import StopRule, horizon
+from .horizon import resolve_window
 from .windows import Windows, distinct_frames
 
 
@@ -69,6 +70,7 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
     targets: {restart: (T,) latent} whose encoder first learns that latent (see distill)."""
     t0 = time.perf_counter()
     config, _ = resolve_encoder(config, system, observation)
+    config, _ = resolve_window(config, frames, dt)
     n_runs = len(inits)
     device = frames.device
     windows = Windows(frames.shape[0], config.window)

@@ -22,6 +22,7 @@ from . import interrupts
 from .config import TrainConfig, resolve_encoder
 from .loop import Callback, StepInfo, Trained, encode_all, train_restarts
 from .holds import whole_clip_check
+from .horizon import resolve_window
 from .observe import ObservationModel, resolve_observation
 from .result import Estimate, FitResult, RunRecord
 from .score import dominant_period, separation_score
@@ -76,6 +77,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
     device = torch.device(config.device)
     n_total = frames.shape[0]
     n_train = n_total if train_frames is None else int(train_frames)
+    config, window_reason = resolve_window(config, frames[:n_train], dt)
     if n_train < config.window + 1:
         raise TrainingError(f"{n_train} training frames are fewer than one window of {config.window} plus one; "
                             "use a longer clip, a smaller --stride or a shorter window")
@@ -145,7 +147,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         settings=config.as_dict(), selection_factor=config.selection_factor,
         meta={**(meta or {}), "interrupted": interrupted, "observation": observation.name,
               "observation_reason": observation.reason,
-              "subspace": prepared.note, "rank": prepared.rank, "encoder": encoder_reason,
+              "subspace": prepared.note, "rank": prepared.rank, "encoder": encoder_reason, "window": window_reason,
               "gauge": {s: g.describe() for s, g in plan.items()}},
         verdicts={n: v.to_dict() for n, v in verdicts.items()},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},
