@@ -138,7 +138,7 @@ CLIPS: dict[str, Clip] = {c.name: c for c in [
          fitode_args=["--system", "torricelli", "--start", "3"], fitode_param="k"),
     Clip("bouncing_ball.avi", "bounce", GREEN,
          stated={"g": (9.81, "9.81 (G in the script)")},
-         fitode_args=["--eq", "y'' = g", "--free", "g"], fitode_param="g"),
+         fitode_args=["--eq", "y'' = g", "--free", "g", "--stride", "1"], fitode_param="g"),
 ]}
 
 
@@ -479,7 +479,8 @@ def fitode_calibration(clip: Clip, m: dict[str, Any]) -> list[str]:
             tt = t - f["t_start"]
             return (f["v0"] * tt + f["g_px"] * tt * tt / 2) * mpp
 
-        return ["--start", f"{t0:.4f}", "--end", f"{t1:.4f}",
+        # --end half a frame late: t1 written to 4 decimals may fall just before its own frame
+        return ["--start", f"{t0:.4f}", "--end", f"{t1 + 0.5 / fps:.4f}",
                 "--calibrate", f"y({t0:.4f})={y(t0):.4f}; y({t1:.4f})={y(t1):.4f}"]
     if clip.kind == "bottle":
         t0, t1 = f["t_start"], f["t_end"]
