@@ -330,7 +330,8 @@ def format_table(report: Mapping[str, Any]) -> str:
         n_sel = len(report.get("selected", []))
         rows = [("constant", "value", "spread", "unit", "verdict")]
         for name, p in params.items():
-            unit = p.get("unit") or ("latent units" if p.get("latent_units") else "")
+            # a value in the latent's arbitrary units has none of the equation file's physical unit
+            unit = "latent units" if p.get("latent_units") else p.get("unit") or ""
             spread = f"±{_spread(p['std'])}" if p.get("n_runs", 1) > 1 else "-"
             rows.append((name, _num(p["value"]), spread, unit, p.get("verdict", "")))
         widths = [max(len(r[i]) for r in rows) for i in range(4)]
