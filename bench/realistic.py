@@ -170,7 +170,8 @@ def fit_video(task: dict[str, Any]) -> dict[str, Any]:
                    frames=int(len(res.time)), dt=float(res.dt), stride=rep.get("input", {}).get("stride"),
                    runs=[{"init": r.init, "final": r.final, "steps": r.steps, "converged": r.converged,
                           "status": r.status, "loss": r.loss, "wall_s": r.wall_s} for r in res.runs],
-                   selected=list(res.selected), warnings=list(rep.get("warnings", [])))
+                   selected=list(res.selected), warnings=list(rep.get("warnings", [])),
+                   verdict=rep["parameters"][q].get("verdict"), observation=res.meta.get("observation"))
         return out
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -205,7 +206,9 @@ def aggregate(videos: list[dict[str, Any]]) -> list[dict[str, Any]]:
                          "paper_rel_err": bc.rel_err(paper, paper_truth) if paper is not None else math.nan,
                          "runs_converged": sum(bool(r["converged"]) for r in runs), "runs": len(runs),
                          "failed_videos": sum(v.get("status") not in ("complete",) for v in vs),
-                         "fit_s_mean": bc.mean_std(v.get("fit_s") for v in vs)[0]})
+                         "fit_s_mean": bc.mean_std(v.get("fit_s") for v in vs)[0],
+                         "verdicts": [v.get("verdict") or "none" for v in vs],
+                         "observation": vs[0].get("observation")})
     return rows
 
 
@@ -223,13 +226,20 @@ def table(rows: list[dict[str, Any]]) -> str:
                     "cal": "2 points of the true state" if r["calibrated"] else
                     ("none: LATENT UNITS" if r.get("needs_calibration") else "none (scale-free)"),
                     "raw": bc.pm(r["raw_mean"], r["raw_std"], d) if r["calibrated"] else "",
-                    "conv": f"{r['runs_converged']}/{r['runs']}", "wall": bc.num(r["fit_s_mean"], 0)})
+                    "conv": f"{r['runs_converged']}/{r['runs']}", "wall": bc.num(r["fit_s_mean"], 0),
+                    "obs": r.get("observation") or "", "verdicts": _verdicts(r.get("verdicts", []))})
     cols = [("scene", "scene"), ("quantity", "q"), ("options", "opt"), ("setting", "set"), ("truth", "truth"),
             ("fitode mean +- std (videos)", "est"), ("err", "err"), ("paper (real data)", "paper"),
             ("paper err", "perr"), ("calibration", "cal"), ("uncalibrated (latent units)", "raw"),
-            ("restarts converged", "conv"), ("s/video", "wall")]
+            ("restarts converged", "conv"), ("observation", "obs"), ("verdicts", "verdicts"), ("s/video", "wall")]
     return bc.format_table(out, cols, title="err: relative error of the mean; paper err: the paper's estimate against "
                                              "its own truth where the issue gives it, else against this setting")
+
+
+def _verdicts(verdicts: list[str]) -> str:
+    """'2 trusted' or '1 trusted, 1 ambiguous': how many videos got which verdict."""
+    counts = {v: verdicts.count(v) for v in dict.fromkeys(verdicts)}
+    return ", ".join(f"{n} {v}" for v, n in counts.items())
 
 
 def print_report(record: dict[str, Any]) -> None:
