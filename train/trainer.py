@@ -146,6 +146,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         states=list(system.states), equation=system.text, fixed=dict(system.fixed),
         settings=config.as_dict(), selection_factor=config.selection_factor,
         meta={**(meta or {}), "interrupted": interrupted, "observation": observation.name,
+              "geometric": observation.geometric,
               "observation_reason": observation.reason,
               "subspace": prepared.note, "rank": prepared.rank, "encoder": encoder_reason, "window": window_reason,
               "gauge": {s: g.describe() for s, g in plan.items()}},
