@@ -100,7 +100,7 @@ def auto_stride(frames: np.ndarray, fps: float, *, min_frames: int = MIN_FRAMES)
         return StrideChoice(1, f"auto: only {n} frame(s), so stride 1", "short", 1, cap, None,
                             0.0, 0.0)
     d = structure_function(frames)
-    kmax = max(3, (2 * n) // 3)
+    kmax = search_lags(n)
     top = float(d[1:kmax + 1].max())
     if top <= 1e-12:
         return StrideChoice(1, "auto: the frames do not change at all, so stride 1", "still", 1,
@@ -109,12 +109,8 @@ def auto_stride(frames: np.ndarray, fps: float, *, min_frames: int = MIN_FRAMES)
         return StrideChoice(1, ("auto: neighbouring frames differ about as much as frames far "
                                 "apart (noise, or motion too fast for the frame rate), so stride 1"),
                             "unresolved", 1, cap, None, math.sqrt(top), math.sqrt(d[1]))
-    # Noise independent between frames adds the same 2 sigma^2 at every lag; linear extrapolation
-    # to lag 0 underestimates it slightly for smooth motion, which errs towards smaller strides.
-    noise = float(np.clip(2.0 * d[1] - d[2], 0.0, d[1]))
-    # Lags up to 2N/3 (at least N/3 pairs each) set the scale and are searched; longer ones, with
-    # fewer pairs, only confirm a period.
-    r_all = np.sqrt(np.maximum(d[1:max(kmax + 1, n - 4)] - noise, 0.0))  # r_all[i] is lag i+1
+    # Lags up to 2N/3 set the scale and are searched; longer ones, with fewer pairs, only confirm a period.
+    r_all, noise = motion_rms(d, max(kmax, n - 5))
     r = r_all[:kmax]
     big = float(r.max())
 
@@ -132,6 +128,21 @@ def auto_stride(frames: np.ndarray, fps: float, *, min_frames: int = MIN_FRAMES)
     tail = f", capped at {cap} to keep at least {min_frames} frames" if stride < want else ""
     return StrideChoice(stride, f"auto: {why}{tail}; {kept} frames at dt {stride / fps:.4g} s",
                         rule, want, cap, period, big, math.sqrt(noise))
+
+
+def search_lags(n: int) -> int:
+    """The longest lag that sets the scale of the change in n frames: 2N/3, so at least N/3 pairs
+    of frames measure each lag."""
+    return max(3, (2 * n) // 3)
+
+
+def motion_rms(d: np.ndarray, last_lag: int) -> tuple[np.ndarray, float]:
+    """r[i], the RMS change due to motion at lag i+1 for lags 1..last_lag, from the structure
+    function d, and the noise variance removed. Noise independent between frames adds the same
+    2 sigma^2 at every lag; it is extrapolated to lag 0 from D(1) and D(2), which underestimates
+    it slightly for smooth motion (erring towards smaller strides and shorter windows)."""
+    noise = float(np.clip(2.0 * d[1] - d[2], 0.0, d[1]))
+    return np.sqrt(np.maximum(d[1:last_lag + 1] - noise, 0.0)), noise
 
 
 def _period(r: np.ndarray, search: int) -> int | None:

@@ -22,7 +22,7 @@ from dataclasses import replace
 import numpy as np
 import torch
 
-from fitode.stride import structure_function
+from fitode.stride import motion_rms, search_lags, structure_function
 
 WINDOW_MIN = 20
 SHARE = 1 - 1 / math.e
@@ -35,9 +35,7 @@ def auto_window(frames: np.ndarray, dt: float) -> tuple[int, str]:
     if n < 4:
         return top, f"auto: the whole clip ({n} frames)"
     d = structure_function(frames)
-    kmax = max(3, (2 * n) // 3)
-    noise = float(np.clip(2.0 * d[1] - d[2], 0.0, d[1]))
-    r = np.sqrt(np.maximum(d[1:kmax + 1] - noise, 0.0))
+    r, _ = motion_rms(d, search_lags(n))
     if float(r.max()) <= 0:
         window = min(WINDOW_MIN, top)
         return window, f"auto: {window} frames ({window * dt:.3g} s); the frames do not change"
