@@ -6,7 +6,7 @@ import pytest
 import torch
 
 import fitode
-from fitode.eqparse import ParamSpec, parse
+from fitode.eqparse import parse
 from fitode.eqparse.gauge import gauge_plan
 from fitode.synth import render_equation
 from fitode.train.config import TrainConfig
@@ -166,10 +166,15 @@ def test_batched_adam_is_torch_adam_per_restart_and_freezes():
 
 
 # --------------------------------------------------------------------------- stopping rule
-def test_stop_rule_settles_then_converges_and_never_on_a_moving_constant():
+def _two_runs():
+    """A stopping-rule config, and two runs' histories and rules to compare under it."""
     config = TrainConfig(min_steps=0, horizon_warmup=0, patience=20, tol=1e-3)
-    flat, drift = History.for_constants(["k"]), History.for_constants(["k"])
-    rule, other = StopRule(config), StopRule(config)
+    return (config, History.for_constants(["k"]), History.for_constants(["k"]), StopRule(config),
+            StopRule(config))
+
+
+def test_stop_rule_settles_then_converges_and_never_on_a_moving_constant():
+    config, flat, drift, rule, other = _two_runs()
     said, other_said = [], []
     for step in range(1, 201):
         flat.append(step, 1.0, 1.0, 0.0, {"k": 2.0})
@@ -186,9 +191,7 @@ def test_stop_rule_settles_then_converges_and_never_on_a_moving_constant():
 
 
 def test_a_loss_moving_far_below_the_floor_does_not_keep_a_settled_run_going():
-    config = TrainConfig(min_steps=0, horizon_warmup=0, patience=20, tol=1e-3)
-    tiny, big = History.for_constants(["k"]), History.for_constants(["k"])
-    rule, other = StopRule(config), StopRule(config)
+    _, tiny, big, rule, other = _two_runs()
     said, other_said = [], []
     for step in range(1, 201):
         falling = 0.97 ** step  # the loss still drops by half every 23 steps
