@@ -269,3 +269,21 @@ def test_check_names_the_distance_observation_of_the_free_fall_file(capsys):
     assert cli.main(["check", "--system", "free_fall_scale"]) == 0
     out = capsys.readouterr().out
     assert "distance (from the equation file)" in out and "f R / d" in out
+
+
+@pytest.mark.slow
+def test_a_fall_filmed_at_an_angle_is_trained_again_on_the_corrected_path():
+    # a camera that looks up a wall sees a fall slow down: one homography of the path about its
+    # middle, 8% at the ends. Read straight, one g misses the path; re-read, the latent is affine
+    # in the distance fallen and g, calibrated by that affine map, is the one the disc fell with.
+    n, dt, g = 50, 1 / 60, 230.0
+    d = 0.5 * g * (np.arange(n) * dt) ** 2 + 8
+    m = d.mean()
+    seen = m + (d - m) / (1 - 0.08 / np.abs(d - m).max() * (d - m))
+    frames = _disc(np.stack([np.full(n, 16.0), seen], axis=1), h=100, w=32, r=3.0)
+    res = fitode.fit(frames, dt, eq="d'' = g", free=["g"], progress=False)
+    assert res.meta["observation"] == "position" and res.checks["perspective"]["apply"]
+    assert "perspective" in res.meta["subspace"]
+    slope = np.polyfit(res.latent[:, 0], d, 1)[0]
+    assert abs(res.values["g"] * slope / g - 1) < 0.02, (res.values, slope)
+    assert not any("whole clip" in f["reason"] for f in res.checks["findings"]), res.checks["findings"]

@@ -29,6 +29,10 @@ from .verdict import Finding
 HALF_TOL = 0.05
 SIGMAS = 3.0
 ITERATIONS = 100
+PERSPECTIVE = "perspective"  # the bend's c, among trajectory_fit's values when bend=True
+MISFIT = "misfit"  # the RMS residual in units of the (bent) state's spread, among trajectory_fit's values
+POLE_MARGIN = 0.9
+BEND_MIN = 0.01  # a perspective that bends the path's ends by less changes nothing worth a second training
 
 
 def whole_clip_check(system, params: Mapping, state: np.ndarray, dt: float, start: Mapping[str, float],
@@ -58,12 +62,17 @@ def whole_clip_check(system, params: Mapping, state: np.ndarray, dt: float, star
 
 
 def trajectory_fit(system, params: Mapping, x: np.ndarray, dt: float, start: Mapping[str, float],
-                   config) -> tuple[dict[str, float], dict[str, float]] | None:
+                   config, bend: bool = False) -> tuple[dict[str, float], dict[str, float]] | None:
     """The constants of the single trajectory of the equation that best follows x (T, d), and
     their standard errors: its starting state and its constants both free, from x's first frames
     and `start` (L-BFGS). The errors come from the Jacobian (least squares' covariance), widened
     for residuals that hang together from frame to frame (by (1 + r) / (1 - r) for a lag-one
-    correlation r). None where it cannot be fitted (it leaves the equation's domain)."""
+    correlation r). None where it cannot be fitted (it leaves the equation's domain).
+
+    bend: x is first read through a perspective (one-dimensional homography) about its middle
+    m, x -> m + (x - m) / (1 + c (x - m)), with c fitted too (kept so that the pole stays outside
+    the measured range) and returned as the constant PERSPECTIVE, in 1 / x's units; the misfit is
+    then measured against the bent x's own spread, so that a bend cannot win by shrinking x."""
     import torch
     from torch.func import functional_call
 
@@ -71,18 +80,35 @@ def trajectory_fit(system, params: Mapping, x: np.ndarray, dt: float, start: Map
     from fitode.errors import FitodeError
 
     xt = torch.as_tensor(x)
-    root = (1.0 / xt.var(dim=0).clamp_min(1e-24)).sqrt()  # every state counts equally, whatever its units
+    middle = xt.mean(dim=0)
+    reach = 1.0 / (xt - middle).abs().max().clamp_min(1e-24)  # the largest |c| that keeps the pole outside
+
+    def bent(a):
+        if not bend:
+            return xt
+        c = POLE_MARGIN * reach * torch.tanh(a)
+        return middle + (xt - middle) / (1 + c * (xt - middle))
     try:
         block = PhysicsBlock(system, params, integrator=config.integrator, substeps=config.substeps).double()
         block.set_constants(dict(start))
         context = xt[: block.n_context].clone().requires_grad_(True)
         named = [(k, p) for k, p in block.named_parameters() if p.requires_grad]
+        if bend:
+            named.append((PERSPECTIVE, torch.zeros((), dtype=xt.dtype, requires_grad=True)))
+        models = dict(block.named_parameters())
+
+        def misfit(swapped, ctx):
+            target = bent(swapped[PERSPECTIVE] if bend else None)
+            root = (1.0 / target.var(dim=0).clamp_min(1e-24)).sqrt()  # every state counts equally, whatever its units
+            own = {k: v for k, v in swapped.items() if k in models}
+            out = functional_call(block, own, (ctx[None], x.shape[0], dt))[0]
+            return ((out - target) * root).flatten()
         opt = torch.optim.LBFGS([p for _, p in named] + [context], lr=0.5, max_iter=ITERATIONS,
                                 line_search_fn="strong_wolfe")
 
         def closure():
             opt.zero_grad(set_to_none=True)
-            value = torch.mean(((block(context[None], x.shape[0], dt)[0] - xt) * root) ** 2)
+            value = torch.mean(misfit(dict(named), context) ** 2)
             value.backward()
             return value
         opt.step(closure)
@@ -92,22 +118,67 @@ def trajectory_fit(system, params: Mapping, x: np.ndarray, dt: float, start: Map
         def residual(v):
             parts = list(torch.split(v, sizes))
             swapped = {k: part.view_as(p) for (k, p), part in zip(named, parts[:-1])}
-            out = functional_call(block, swapped, (parts[-1].view_as(context)[None], x.shape[0], dt))[0]
-            return ((out - xt) * root).flatten()
+            return misfit(swapped, parts[-1].view_as(context))
         r = residual(flat).detach()
         jac = torch.autograd.functional.jacobian(residual, flat)
         dof = max(r.numel() - flat.numel(), 1)
         lag = float((r[1:] @ r[:-1]) / (r @ r).clamp_min(1e-300)) if r.numel() > 2 else 0.0
         lag = min(max(lag, 0.0), 0.95)
         cov = torch.linalg.pinv(jac.T @ jac) * float(r @ r) / dof * (1 + lag) / (1 - lag)
+        outputs = dict(block.constants())
+        if bend:
+            outputs[PERSPECTIVE] = POLE_MARGIN * reach * torch.tanh(named[-1][1])
         values, errors = {}, {}
-        for name, value in block.constants().items():
+        for name, value in outputs.items():
             grads = torch.autograd.grad(value, [p for _, p in named], allow_unused=True)
             g = torch.cat([(gr if gr is not None else torch.zeros_like(p)).flatten()
                            for gr, (_, p) in zip(grads, named)] + [torch.zeros(context.numel(), dtype=flat.dtype)])
             values[name] = float(value.detach())
             errors[name] = float((g @ cov @ g).clamp_min(0).sqrt())
+        values[MISFIT] = float((r @ r) / r.numel()) ** 0.5
     except (FitodeError, RuntimeError, FloatingPointError):
         return None
     finite = np.all(np.isfinite(list(values.values()) + list(errors.values())))
     return (values, errors) if finite else None
+
+
+def perspective_check(system, params: Mapping, state: np.ndarray, dt: float, start: Mapping[str, float],
+                      config) -> dict | None:
+    """Is the measured path read through a perspective? A camera that looks at a line of motion
+    at an angle sees equal steps along it as unequal ones, nearer larger, which is a
+    one-dimensional homography of the position: a fall filmed from below the ceiling looks as if
+    it slowed down (the real ball drop: g 16 on the first half of the clip against 11 on the
+    second, in latent units). The single trajectory of the equation is fitted to the whole path
+    read straight and read through a bend (trajectory_fit with bend=True); the bend is to be
+    applied where it is SIGMAS standard errors from zero, bends the ends of the path by at least
+    BEND_MIN, and fits better. A bend cannot make a parabola of another parabola (nor any law
+    of itself with other constants), so the bend that fits is the camera's, not a re-reading
+    of the dynamics: its one number is decided by the whole clip.
+
+    None for a latent of more than one dimension or a fit that fails; otherwise the numbers:
+    c and its error, the middle m the bend is about (x -> m + (x - m) / (1 + c (x - m))), the
+    bend at the path's ends, the misfit read straight and bent, and whether to apply it."""
+    x = np.asarray(state, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] != 1 or x.shape[0] < 16 or not np.all(np.isfinite(x)):
+        return None
+    straight = trajectory_fit(system, params, x, dt, start, config)
+    bent = trajectory_fit(system, params, x, dt, start, config, bend=True)
+    if straight is None or bent is None:
+        return None
+    c, se = bent[0][PERSPECTIVE], bent[1][PERSPECTIVE]
+    middle = float(x.mean())
+    ends = abs(c) * float(np.abs(x - middle).max())
+    misfit = [straight[0][MISFIT], bent[0][MISFIT]]
+    apply = abs(c) > SIGMAS * se and ends >= BEND_MIN and misfit[1] < misfit[0]
+    return {"c": c, "se": se, "middle": middle, "bend_at_ends": ends, "misfit": misfit, "apply": bool(apply),
+            "constants": {n: [straight[0][n], bent[0][n]] for n in system.learnable}}
+
+
+def unbend(x: np.ndarray, c: float, middle: float) -> np.ndarray | None:
+    """x read through the perspective bend about middle; None where a frame lies beyond the
+    bend's pole (a held-out frame far outside the range the bend was fitted on)."""
+    d = np.asarray(x, dtype=np.float64) - middle
+    denominator = 1.0 + c * d
+    if np.any(denominator <= 0.05):
+        return None
+    return middle + d / denominator

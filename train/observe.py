@@ -58,6 +58,7 @@ class ObservationModel:
     # few steps apart that the score compares never look alike, so it would call a right
     # latent wrong.
     geometric = False
+    perspective = False  # may the trainer re-read the latent through a camera's perspective (holds.perspective_check)?
 
     def __init__(self, subspace: bool = True):
         self.subspace = subspace
@@ -176,6 +177,7 @@ class PositionObservation(ObservationModel):
     name = "position"
     architecture = "linear"
     geometric = True
+    perspective = True
 
     def encoder(self, architecture: str, in_shape: tuple[int, int, int], dim: int, seeds,
                 output_mean: float = 0.0, output_std: float = 1.0) -> BatchedEncoder:
@@ -205,6 +207,28 @@ class PositionObservation(ObservationModel):
         return Prepared(z.to(frames.dtype).reshape(-1, 1, 1, 1), out.components, 1, note)
 
 
+    def reread(self, prepared: Prepared, state: np.ndarray, perspective: dict, fit_frames: int) -> Prepared | None:
+        """The path read through the camera's perspective that holds.perspective_check found on a
+        first training's state (T, 1), which is affine in the path: the encoder's new input is
+        that state bent, at unit spread and in the path's orientation. None where a frame lies
+        beyond the bend's pole."""
+        from .holds import unbend
+
+        bent = unbend(np.asarray(state, dtype=np.float64)[:, 0], perspective["c"], perspective["middle"])
+        if bent is None:
+            return None
+        old = prepared.inputs.reshape(-1).double().cpu().numpy()
+        z = (bent - bent[:fit_frames].mean()) / max(float(bent[:fit_frames].std()), 1e-12)
+        if float(np.dot(z[:fit_frames], old[:fit_frames])) < 0:
+            z = -z
+        note = (f"{prepared.note}; read through the camera's perspective: one trajectory of the equation fits "
+                f"the whole path {perspective['misfit'][0] / max(perspective['misfit'][1], 1e-300):.1f}x better "
+                f"when its ends are bent by {100 * perspective['bend_at_ends']:.1f}% (a camera that looks at the "
+                "line of motion at an angle), so it was trained again on the path so corrected")
+        inputs = torch.as_tensor(z, dtype=prepared.inputs.dtype, device=prepared.inputs.device).reshape(prepared.inputs.shape)
+        return replace(prepared, inputs=inputs, note=note)
+
+
 class SizeObservation(PositionObservation):
     """The camera sees how large something looks: the latent is affine in its apparent radius
     (train/extent.py), for what grows or shrinks in place (the paper's scale videos, a balloon,
@@ -212,6 +236,7 @@ class SizeObservation(PositionObservation):
     another law."""
 
     name = "size"
+    perspective = False  # the distance model is the perspective of a size
     how = "read linearly"
 
     def reading(self, radius: torch.Tensor) -> torch.Tensor:
@@ -312,7 +337,7 @@ def _centroids(gray: torch.Tensor, background: torch.Tensor) -> tuple[torch.Tens
     # only each frame's strongest change: the object, not a hand that moves at the edge, a
     # shadow or the camera's exposure drifting over the whole wall
     floor = torch.maximum(3 * noise, CORE * diff.flatten(1).max(dim=1).values)[:, None, None]
-    heat = torch.where(diff > floor, diff, torch.zeros_like(diff))
+    heat = _strongest_region(torch.where(diff > floor, diff, torch.zeros_like(diff)))
     mass = heat.sum(dim=(1, 2)).clamp_min(1e-12)
     h, w = gray.shape[1:]
     ys = torch.arange(h, dtype=heat.dtype, device=heat.device)
@@ -320,6 +345,26 @@ def _centroids(gray: torch.Tensor, background: torch.Tensor) -> tuple[torch.Tens
     cx = (heat.sum(dim=1) * xs).sum(dim=1) / mass
     cy = (heat.sum(dim=2) * ys).sum(dim=1) / mass
     return torch.stack([cx, cy], dim=1), heat
+
+
+def _strongest_region(heat: torch.Tensor) -> torch.Tensor:
+    """Each frame's heat (T, H, W) cut to its connected region of largest total change (pixels
+    one apart count as connected): a hand that pulls back at the frame's edge while a fading,
+    motion-blurred ball crosses the middle passes the threshold too, and the centroid of both
+    lies between them, where nothing is."""
+    import cv2
+
+    kept = heat.clone()
+    near = np.ones((3, 3), np.uint8)
+    for t, frame in enumerate(heat.cpu().numpy()):
+        mask = cv2.dilate((frame > 0).astype(np.uint8), near)
+        n, labels = cv2.connectedComponents(mask, connectivity=8)
+        if n <= 2:  # one region, or none
+            continue
+        mass = np.bincount(labels.ravel(), weights=frame.ravel(), minlength=n)
+        mass[0] = 0.0
+        kept[t] = torch.where(torch.from_numpy(labels == int(np.argmax(mass))).to(heat.device), heat[t], 0.0)
+    return kept
 
 
 OBSERVATIONS = {"any": ObservationModel, "brightness": BrightnessObservation, "position": PositionObservation,

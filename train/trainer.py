@@ -7,6 +7,7 @@ choice of runs in selection.py.
 from __future__ import annotations
 
 import contextlib
+from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
@@ -21,7 +22,7 @@ from fitode.errors import TrainingError
 from . import interrupts
 from .config import TrainConfig, resolve_encoder
 from .loop import Callback, StepInfo, Trained, encode_all, train_restarts
-from .holds import whole_clip_check
+from .holds import perspective_check, whole_clip_check
 from .horizon import resolve_window
 from .observe import ObservationModel, resolve_observation
 from .result import Estimate, FitResult, RunRecord
@@ -82,13 +83,80 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         raise TrainingError(f"{n_train} training frames are fewer than one window of {config.window} plus one; "
                             "use a longer clip, a smaller --stride or a shorter window")
     prepared = observation.prepare(frames.to(device), config.encoder, fit_frames=n_train)
-    frames = prepared.inputs
+    plan = gauge_plan(system)
+    coefs = prepared.components[:n_train]  # the training frames' leading principal components
+    fit = _train_pass(prepared.inputs, n_train, dt, system, params, config, init, observation, plan, coefs,
+                      callback, progress)
+    perspective = None
+    if observation.perspective and not fit.interrupted:
+        perspective = perspective_check(system, params, fit.states[fit.best, :n_train], dt,
+                                        fit.records[fit.best].final, config)
+        if perspective is not None and perspective["apply"]:
+            reread = observation.reread(prepared, fit.states[fit.best], perspective, n_train)
+            perspective["apply"] = reread is not None
+            if reread is not None:
+                prepared = reread
+                fit = _train_pass(prepared.inputs, n_train, dt, system, params, config, init, observation, plan,
+                                  coefs, callback, progress)
+    records, latents, rollouts, states = fit.records, fit.latents, fit.rollouts, fit.states
+    best, selected, interrupted = fit.best, fit.selected, fit.interrupted
+    estimates = {}
+    for name in system.learnable:
+        vals = np.array([records[i].value(name) for i in selected])
+        unit = params.get(name, ParamSpec()).unit
+        estimates[name] = Estimate(float(vals.mean()), float(vals.std()) if len(vals) > 1 else 0.0, len(vals), unit)
+    findings, numbers = video_checks(latents[best, :n_train], rollouts[best, :n_train], coefs, dt,
+                                     records[best].score, oscillator=system.max_order >= 2,
+                                     encoder=config.encoder, rank=prepared.rank, miss=records[best].miss,
+                                     observation=observation.name, geometric=observation.geometric)
+    if prepared.caution:
+        findings.append(Finding("ambiguous", prepared.caution))
+    if observation.geometric and not interrupted:
+        holds, numbers["whole_clip"] = whole_clip_check(system, params, states[best, :n_train], dt,
+                                                        records[best].final, config)
+        if holds is not None:
+            findings.append(holds)
+    if perspective is not None:
+        numbers["perspective"] = perspective
+    verdicts = judge(system.learnable, records, selected, {n: e.value for n, e in estimates.items()}, findings,
+                     analysis=analyse(system))
+    return FitResult(
+        parameters=estimates, runs=records, selected=selected, best=best,
+        latent=latents[best], rollout=rollouts[best], time=np.arange(n_total) * dt, train_frames=n_train, dt=dt,
+        states=list(system.states), equation=system.text, fixed=dict(system.fixed),
+        settings=config.as_dict(), selection_factor=config.selection_factor,
+        meta={**(meta or {}), "interrupted": interrupted, "observation": observation.name,
+              "geometric": observation.geometric,
+              "observation_reason": observation.reason,
+              "subspace": prepared.note, "rank": prepared.rank, "encoder": encoder_reason, "window": window_reason,
+              "gauge": {s: g.describe() for s, g in plan.items()}},
+        verdicts={n: v.to_dict() for n, v in verdicts.items()},
+        checks={**numbers, "findings": [f.to_dict() for f in findings]},
+    )
+
+
+@dataclass
+class _Pass:
+    """One training of every restart on one reading of the frames, its runs selected."""
+
+    records: list[RunRecord]
+    latents: np.ndarray
+    rollouts: np.ndarray
+    states: np.ndarray
+    selected: list[int]
+    best: int
+    interrupted: bool
+
+
+def _train_pass(frames: torch.Tensor, n_train: int, dt: float, system: OdeSystem, params: Mapping[str, ParamSpec],
+                config: TrainConfig, init: Mapping[str, float] | None, observation: ObservationModel, plan,
+                coefs: np.ndarray, callback: Callback | None, progress: bool) -> _Pass:
+    """Every restart trained on the encoder's inputs `frames` (their first n_train), each run's
+    latent, rollout and state on every frame, and the runs selected for the estimate."""
     inits = restart_inits(system, params, config.restarts, config.seed, init)
     origins = ["user" if init else "equation file"] + ["spread"] * (len(inits) - 1)
     seeds = [config.seed * 1000 + i for i in range(len(inits))]
-    plan = gauge_plan(system)
     targets: dict[int, np.ndarray] = {}
-    coefs = prepared.components[:n_train]  # the training frames' leading principal components
     with _threads(config.threads), interrupts.deferred_signals():
         n_data = min(DATA_STARTS, len(inits) - 1)
         if n_data:
@@ -122,37 +190,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         raise TrainingError(f"every run failed ({errors})")
     best = min(selected, key=lambda i: records[i].loss)
     _align(records, latents[:, :n_train], best, sign_odd(system))
-    estimates = {}
-    for name in system.learnable:
-        vals = np.array([records[i].value(name) for i in selected])
-        unit = params.get(name, ParamSpec()).unit
-        estimates[name] = Estimate(float(vals.mean()), float(vals.std()) if len(vals) > 1 else 0.0, len(vals), unit)
-    findings, numbers = video_checks(latents[best, :n_train], rollouts[best, :n_train], coefs, dt,
-                                     records[best].score, oscillator=system.max_order >= 2,
-                                     encoder=config.encoder, rank=prepared.rank, miss=records[best].miss,
-                                     observation=observation.name, geometric=observation.geometric)
-    if prepared.caution:
-        findings.append(Finding("ambiguous", prepared.caution))
-    if observation.geometric and not interrupted:
-        holds, numbers["whole_clip"] = whole_clip_check(system, params, states[best, :n_train], dt,
-                                                        records[best].final, config)
-        if holds is not None:
-            findings.append(holds)
-    verdicts = judge(system.learnable, records, selected, {n: e.value for n, e in estimates.items()}, findings,
-                     analysis=analyse(system))
-    return FitResult(
-        parameters=estimates, runs=records, selected=selected, best=best,
-        latent=latents[best], rollout=rollouts[best], time=np.arange(n_total) * dt, train_frames=n_train, dt=dt,
-        states=list(system.states), equation=system.text, fixed=dict(system.fixed),
-        settings=config.as_dict(), selection_factor=config.selection_factor,
-        meta={**(meta or {}), "interrupted": interrupted, "observation": observation.name,
-              "geometric": observation.geometric,
-              "observation_reason": observation.reason,
-              "subspace": prepared.note, "rank": prepared.rank, "encoder": encoder_reason, "window": window_reason,
-              "gauge": {s: g.describe() for s, g in plan.items()}},
-        verdicts={n: v.to_dict() for n, v in verdicts.items()},
-        checks={**numbers, "findings": [f.to_dict() for f in findings]},
-    )
+    return _Pass(records, latents, rollouts, states, selected, best, interrupted)
 
 
 def _align(records: list[RunRecord], latents: np.ndarray, best: int, odd: set[str]) -> None:
