@@ -12,7 +12,7 @@ import fitode
 from fitode import cli, synth
 from fitode.eqparse import parse
 from fitode.train.observe import (BrightnessObservation, ObservationModel, PositionObservation, centroids, look,
-                                  resolve_observation)
+                                  mend_one_way, resolve_observation)
 from fitode.video.light import linear_to_srgb, srgb_to_linear
 
 DECAY = "I' = -gamma*I"
@@ -287,3 +287,27 @@ def test_a_fall_filmed_at_an_angle_is_trained_again_on_the_corrected_path():
     slope = np.polyfit(res.latent[:, 0], d, 1)[0]
     assert abs(res.values["g"] * slope / g - 1) < 0.02, (res.values, slope)
     assert not any("whole clip" in f["reason"] for f in res.checks["findings"]), res.checks["findings"]
+
+
+def test_a_hand_that_moves_at_the_edge_does_not_pull_the_centroid_of_a_falling_disc():
+    n = 30
+    path = np.stack([np.full(n, 16.0), 10 + 0.08 * np.arange(n) ** 2], axis=1)
+    frames = _disc(path, h=100, w=32, r=3.0)
+    frames[2 * n // 3:, 0:2, 0:4] = 0.95  # the edge of a hand pulled back at the top, in the last third
+    xy, _, _, _ = centroids(torch.from_numpy(frames)[:, None])
+    err = xy.numpy()[:, 1] - path[:, 1]
+    assert np.abs(err - err.mean()).max() < 0.5
+
+
+def test_a_one_way_path_is_mended_where_its_centroid_strays_and_an_oscillation_is_not():
+    t = np.linspace(0, 1, 100)
+    fall = torch.tensor(50 * t ** 2)
+    strays = fall.clone()
+    strays[40:48] += 20  # eight frames where the centroid of something else was taken
+    mended, n = mend_one_way(strays)
+    assert n == 8 and float((mended - fall).abs().max()) < 0.2
+    noisy = fall + torch.tensor(0.3 * np.random.default_rng(0).standard_normal(100))
+    assert mend_one_way(noisy)[1] == 0 and mend_one_way(fall)[1] == 0
+    swing = torch.tensor(10 * np.sin(8 * t))
+    swing[40] += 20
+    assert mend_one_way(swing)[1] == 0  # a path that turns back is not its own running median

@@ -200,11 +200,19 @@ class PositionObservation(ObservationModel):
         n_fit = xy.shape[0] if fit_frames is None else int(fit_frames)
         # the line of motion: a linear encoder of two collinear coordinates can cancel its own signal
         direction, path = line_of_motion(xy, n_fit)
+        path, mended = mend_one_way(path, n_fit)
         z = path / path[:n_fit].std().clamp_min(1e-6)
         angle = float(torch.rad2deg(torch.atan2(direction[1], direction[0]))) % 180
         note = (f"position: the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
                 f"average), along its line of motion ({angle:.0f} degrees from the image's x axis), read linearly")
-        return Prepared(z.to(frames.dtype).reshape(-1, 1, 1, 1), out.components, 1, note)
+        caution = None
+        if mended:
+            note += (f"; {mended} frame{'s' if mended != 1 else ''} whose centroid left the one-way path of "
+                     f"{'their' if mended != 1 else 'its'} neighbours read from them")
+            if mended > MENDED_MAX * n_fit:
+                caution = (f"{mended} of {n_fit} frames had a centroid off the path of their neighbours and were read "
+                           "from them: something else changes in the view as much as the object; give --roi around it")
+        return Prepared(z.to(frames.dtype).reshape(-1, 1, 1, 1), out.components, 1, note, caution)
 
 
     def reread(self, prepared: Prepared, state: np.ndarray, perspective: dict, fit_frames: int) -> Prepared | None:
@@ -281,6 +289,10 @@ class DistanceObservation(SizeObservation):
 
 
 CORE = 0.7
+MEND_SPAN = 21  # frames around each frame whose running median a one-way path is checked against
+MEND_SIGMAS = 6.0
+MEND_PIXELS = 1.0
+MENDED_MAX = 0.1  # a larger share of mended frames is a finding: the centroid is not the object's
 
 
 @torch.no_grad()
@@ -314,6 +326,41 @@ def centroids(frames: torch.Tensor, fit_frames: int | None = None) -> tuple[torc
             xy[t] = xy[t - 1]
     pixels = float((heat > 0).sum(dim=(1, 2)).double().mean())
     return xy, pixels, int((~seen).sum()), heat.flatten(1).max(dim=1).values
+
+
+def mend_one_way(path: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Tensor, int]:
+    """A path that runs one way (rank correlation with time at least ONE_WAY over the first n_fit
+    frames) with the frames that leave it read from their neighbours, and how many those are.
+
+    A one-way path is its own running median (the median of a monotone run is its middle), so
+    a frame far from the running median of the MEND_SPAN frames around it is not the object:
+    where the change from the static scene is a boundary (a water level), it vanishes as the
+    level passes its median place, and the centroid of whatever else changes then (the jet under
+    the bottle) is taken for a few frames. Far means more than MEND_SIGMAS times the residuals'
+    robust spread and more than MEND_PIXELS. The ends are extended by point reflection, which
+    keeps a steady run steady. A path that turns back (an oscillation) is left as it is."""
+    n = path.shape[0]
+    n_fit = n if n_fit is None else int(n_fit)
+    if n_fit < 8:
+        return path, 0
+    x = path.double().cpu().numpy()
+    ranks = np.argsort(np.argsort(x[:n_fit]))
+    if abs(float(np.corrcoef(ranks, np.arange(n_fit))[0, 1])) < ONE_WAY:
+        return path, 0
+    half = max(2, min(MEND_SPAN // 2, n // 4))
+    mended, off = x, np.zeros(n, dtype=bool)
+    for _ in range(2):  # the second round against the mended path: the first's median leans towards a run of strays
+        padded = np.concatenate([2 * mended[0] - mended[half:0:-1], mended,
+                                 2 * mended[-1] - mended[-2:-half - 2:-1]])
+        residual = x - np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1), axis=1)
+        spread = 1.4826 * float(np.median(np.abs(residual)))
+        off = np.abs(residual) > max(MEND_SIGMAS * spread, MEND_PIXELS)
+        if not off.any() or off.all():
+            return path, 0
+        good = np.flatnonzero(~off)
+        mended = x.copy()
+        mended[off] = np.interp(np.flatnonzero(off), good, x[good])
+    return torch.as_tensor(mended, dtype=path.dtype, device=path.device), int(off.sum())
 
 
 def line_of_motion(xy: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Tensor, torch.Tensor]:
