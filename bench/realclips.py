@@ -80,10 +80,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import subprocess
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -135,7 +133,7 @@ CLIPS: dict[str, Clip] = {c.name: c for c in [
                       "--calibrate", "d(0.984)=0.02; d(1.658)=2.30"], fitode_param="g"),
     Clip("draining_bottle_hole7mm.mp4", "bottle", RED_WATER,
          stated={"k": (None, "none (7 mm hole, 16.5 cm tall)")},
-         fitode_args=["--system", "torricelli", "--start", "3"], fitode_param="k"),
+         fitode_args=["--system", "torricelli", "--start", "3", "--observe", "position"], fitode_param="k"),
     Clip("bouncing_ball.avi", "bounce", GREEN,
          stated={"g": (9.81, "9.81 (G in the script)")},
          fitode_args=["--eq", "y'' = g", "--free", "g", "--stride", "1"], fitode_param="g"),

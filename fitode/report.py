@@ -8,7 +8,7 @@ result.json layout (every run of `fitode VIDEO ...` writes one):
                       stride, stride_reason, dt, duration_s, start, end, roi, size, color, mask
     equation          text, normal_form, states, learnable, fixed
     identifiability   per constant: separable, combination, scale, reason (null when unavailable)
-    parameters        NAME: value, std, n_runs, unit, scale, latent_units, calibrated, warnings
+    parameters        NAME: value, std, n_runs, unit, scale, latent_units, best_run_only, calibrated, warnings
     calibration       null, or the affine maps and the constants it converted (see fitode.calibrate)
     runs              every restart: index, seed, init, final, loss, steps, status, error, converged,
                       wall_s, selected (histories are in fit.json, or history.json for a partial run)
@@ -208,7 +208,8 @@ def complete_report(report: dict[str, Any], result, analysis, calibration, t0: f
         unit = est.unit or units.get(name)
         entry = {"value": value, "std": std, "n_runs": est.n_runs, "unit": unit,
                  "scale": scale_of(analysis, name), "measurable": measurable(analysis, name),
-                 "calibrated": bool(conv and conv["converted"]), "latent_units": False, "warnings": [],
+                 "calibrated": bool(conv and conv["converted"]), "latent_units": False,
+                 "best_run_only": name in result.meta.get("own_units", ()), "warnings": [],
                  **_verdict(result, name)}
         if scale_dependent(analysis, name) and not entry["calibrated"]:
             entry["latent_units"] = True
@@ -337,6 +338,10 @@ def format_table(report: Mapping[str, Any]) -> str:
             rows.append((name, _num(p["value"]), spread, unit, p.get("verdict", "")))
         widths = [max(len(r[i]) for r in rows) for i in range(4)]
         out.append(f"estimates (mean over {n_sel} of {n_runs} restarts; spread = their standard deviation)")
+        only = [n for n, p in params.items() if p.get("best_run_only")]
+        if only and n_sel > 1:
+            out.append(f"  ({', '.join(only)}: the best restart's alone; each restart reads the same measured path "
+                       "in units of its own)")
         for i, r in enumerate(rows):
             out.append("  " + "  ".join([r[0].ljust(widths[0]), r[1].rjust(widths[1]), r[2].rjust(widths[2]),
                                          r[3].ljust(widths[3]), r[4].upper() if i else r[4]]).rstrip())

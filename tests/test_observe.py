@@ -311,3 +311,23 @@ def test_a_one_way_path_is_mended_where_its_centroid_strays_and_an_oscillation_i
     swing = torch.tensor(10 * np.sin(8 * t))
     swing[40] += 20
     assert mend_one_way(swing)[1] == 0  # a path that turns back is not its own running median
+
+
+def test_restarts_that_read_one_measured_path_are_not_compared_in_their_own_units():
+    from fitode.eqparse import analyse
+    from fitode.train.observe import SizeObservation
+    from fitode.train.result import RunRecord
+    from fitode.train.trainer import _own_units
+    from fitode.train.verdict import judge
+    system = parse("h' = -k*sqrt(h)")
+    analysis = analyse(system)
+    assert _own_units(system, analysis, PositionObservation()) == {"k"}
+    assert _own_units(system, analysis, SizeObservation()) == {"k"}
+    assert _own_units(system, analysis, ObservationModel()) == set()  # a free encoder's restarts are compared
+    assert _own_units(parse("x'' = -w*x"), analyse(parse("x'' = -w*x")), PositionObservation()) == set()
+    runs = [RunRecord(index=i, seed=i, init={}, final={"k": v}, loss=0.1, steps=1, status="ok", converged=True)
+            for i, v in enumerate([0.037, 0.064])]  # the same drain read at two scales
+    compared = judge(["k"], runs, [0, 1], {"k": 0.064}, [], calibrated=["k"])
+    assert compared["k"].verdict == "ambiguous" and "disagree" in compared["k"].reason
+    own = judge(["k"], runs, [0, 1], {"k": 0.064}, [], calibrated=["k"], own_units=["k"])
+    assert own["k"].verdict == "trusted" and "best restart's reading" in own["k"].reason

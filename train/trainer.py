@@ -100,9 +100,13 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
                                   coefs, callback, progress)
     records, latents, rollouts, states = fit.records, fit.latents, fit.rollouts, fit.states
     best, selected, interrupted = fit.best, fit.selected, fit.interrupted
+    analysis = analyse(system)
+    own_units = _own_units(system, analysis, observation)
     estimates = {}
     for name in system.learnable:
-        vals = np.array([records[i].value(name) for i in selected])
+        # restarts that read one measured path each read it in units of their own: a constant that
+        # depends on the units is the best run's, not a mean over several units
+        vals = np.array([records[i].value(name) for i in ([best] if name in own_units else selected)])
         unit = params.get(name, ParamSpec()).unit
         estimates[name] = Estimate(float(vals.mean()), float(vals.std()) if len(vals) > 1 else 0.0, len(vals), unit)
     findings, numbers = video_checks(latents[best, :n_train], rollouts[best, :n_train], coefs, dt,
@@ -119,7 +123,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
     if perspective is not None:
         numbers["perspective"] = perspective
     verdicts = judge(system.learnable, records, selected, {n: e.value for n, e in estimates.items()}, findings,
-                     analysis=analyse(system))
+                     analysis=analysis, own_units=own_units)
     return FitResult(
         parameters=estimates, runs=records, selected=selected, best=best,
         latent=latents[best], rollout=rollouts[best], time=np.arange(n_total) * dt, train_frames=n_train, dt=dt,
@@ -129,10 +133,19 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
               "geometric": observation.geometric,
               "observation_reason": observation.reason,
               "subspace": prepared.note, "rank": prepared.rank, "encoder": encoder_reason, "window": window_reason,
-              "gauge": {s: g.describe() for s, g in plan.items()}},
+              "gauge": {s: g.describe() for s, g in plan.items()}, "own_units": sorted(own_units)},
         verdicts={n: v.to_dict() for n, v in verdicts.items()},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},
     )
+
+
+def _own_units(system: OdeSystem, analysis, observation: ObservationModel) -> set[str]:
+    """The constants whose restarts are not comparable: with a measured latent (a geometric
+    observation) every restart reads the same path, scaled and shifted in its own way, and a
+    constant whose value depends on the latent's scale differs between them by that alone."""
+    if not observation.geometric:
+        return set()
+    return {n for n in system.learnable if analysis[n].scale == "dependent"}
 
 
 @dataclass

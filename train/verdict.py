@@ -157,10 +157,13 @@ def _motion(run, name: str) -> float | None:
 
 
 def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[str, float],
-          findings: list[Finding], analysis=None, calibrated: Iterable[str] = ()) -> dict[str, Verdict]:
+          findings: list[Finding], analysis=None, calibrated: Iterable[str] = (),
+          own_units: Iterable[str] = ()) -> dict[str, Verdict]:
     """The verdict per constant. runs: RunRecords with .index, .status, .final, .loss, .score,
-    .converged; analysis: the equation's IdentifiabilityReport (None: not judged on it)."""
-    calibrated = set(calibrated)
+    .converged; analysis: the equation's IdentifiabilityReport (None: not judged on it);
+    own_units: constants whose restarts read one measured path in units of their own, so their
+    values are the best run's and are not compared between restarts."""
+    calibrated, own_units = set(calibrated), set(own_units)
     by_index = {r.index: r for r in runs}
     sel = [by_index[i] for i in selected]
     scores = [r.score for r in sel if r.score is not None and math.isfinite(r.score)]
@@ -178,7 +181,7 @@ def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[st
                 found.append(Finding("not trustworthy", "its value depends on the latent's arbitrary units; "
                                      "give --calibrate with known values of the state"))
         vals = [r.value(name) for r in sel if name in r.final]
-        if len(vals) > 1 and np.std(vals) > AGREE_TOL * max(abs(value), 1e-12):
+        if len(vals) > 1 and name not in own_units and np.std(vals) > AGREE_TOL * max(abs(value), 1e-12):
             found.append(Finding("ambiguous", "the selected restarts disagree: "
                                  + ", ".join(f"{v:.4g}" for v in vals)))
         misses = [r.miss for r in sel if r.miss is not None]
@@ -201,6 +204,8 @@ def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[st
         worst = found[0] if found else None
         if worst is None:
             agree = f"{len(sel)} restart{'s' if len(sel) != 1 else ''} agree" if len(sel) > 1 else "one restart"
+            if name in own_units:
+                agree = "the best restart's reading"
             why = (f"the latent tells the frames apart (score {best_score:.2f})" if best_score is not None
                    else "the latent is a measured position or size, read linearly")
             out[name] = Verdict("trusted", f"{agree}; {why}")
@@ -215,4 +220,4 @@ def rejudge(result, analysis=None, calibrated: Iterable[str] = (), extra: Iterab
     constant physical, or show a calibrated value outside the equation's bounds)."""
     findings = [Finding(f["level"], f["reason"]) for f in result.checks.get("findings", [])] + list(extra)
     return judge(list(result.parameters), result.runs, result.selected, result.values, findings,
-                 analysis=analysis, calibrated=calibrated)
+                 analysis=analysis, calibrated=calibrated, own_units=result.meta.get("own_units", ()))
