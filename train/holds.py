@@ -120,7 +120,7 @@ def trajectory_fit(system, params: Mapping, x: np.ndarray, dt: float, start: Map
             swapped = {k: part.view_as(p) for (k, p), part in zip(named, parts[:-1])}
             return misfit(swapped, parts[-1].view_as(context))
         r = residual(flat).detach()
-        jac = torch.autograd.functional.jacobian(residual, flat)
+        jac = torch.autograd.functional.jacobian(residual, flat, vectorize=True, strategy="forward-mode")
         dof = max(r.numel() - flat.numel(), 1)
         lag = float((r[1:] @ r[:-1]) / (r @ r).clamp_min(1e-300)) if r.numel() > 2 else 0.0
         lag = min(max(lag, 0.0), 0.95)
