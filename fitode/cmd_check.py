@@ -120,7 +120,8 @@ _REMOVES = {
                   "(I -> I**p, which would multiply a decay rate by p) and no transfer curve (about p = 1/2.2)",
     "any": "a free encoder: the latent may be any function of the pixels; the gauge fixes only its scale and offset",
     "position": "the centroid of the change along its line of motion, read linearly: no bend of the latent "
-                "(a bent parabola is nearly another parabola, with another g)",
+                "(a bent parabola is nearly another parabola, with another g), but for the one bend a camera "
+                "at an angle makes (a perspective), which the whole clip fixes after a first training",
     "size": "the apparent radius of what grows or shrinks, read linearly: no bend of the latent",
     "distance": "the reciprocal of the apparent radius of what moves along the line of sight (a pinhole camera "
                 "sees radius f R / d), read linearly: the latent is affine in the distance, unbent",
