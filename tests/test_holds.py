@@ -5,7 +5,8 @@ import numpy as np
 
 from fitode.eqparse import parse
 from fitode.train.config import TrainConfig
-from fitode.train.holds import perspective_check, trajectory_fit, unbend, whole_clip_check
+from fitode.train.holds import one_trajectory_check, perspective_check, trajectory_fit, unbend, whole_clip_check
+from fitode.train.verdict import Finding
 
 
 def _fall(drag: float, n: int = 80, dt: float = 1 / 120, noise: float = 0.002, seed: int = 0) -> np.ndarray:
@@ -70,3 +71,20 @@ def test_a_bend_whose_pole_falls_inside_the_frames_is_refused():
     x = np.linspace(-1.0, 1.0, 21)
     assert unbend(x, 0.5, 0.0) is not None
     assert unbend(x, 1.2, 0.0) is None  # 1 + c (x - m) reaches zero at x = -0.83
+
+
+def test_windows_that_missed_a_slow_constant_are_named_against_one_trajectory():
+    from fitode.train.result import RunRecord
+    from fitode.train.verdict import judge
+    system, config = parse("d'' = g", free=["g"]), TrainConfig()
+    x = _fall(0.0)
+    found, numbers = one_trajectory_check(system, {}, x, 1 / 120, {"g": 9.8 * 1.1}, config)
+    assert abs(numbers["g"][0] - 9.81) < 3 * numbers["g"][1]
+    assert len(found) == 1 and found[0].names == ("g",) and "one trajectory" in found[0].reason
+    assert one_trajectory_check(system, {}, x, 1 / 120, {"g": 9.81}, config)[0] == []
+    # a finding that names one constant leaves the others' verdicts alone
+    runs = [RunRecord(index=0, seed=0, init={}, final={"w": 4.0, "z": 0.1}, loss=0.1, steps=1, status="ok",
+                      converged=True)]
+    verdicts = judge(["w", "z"], runs, [0], {"w": 4.0, "z": 0.1}, [Finding("ambiguous", "slow", ("z",))])
+    assert verdicts["z"].verdict == "ambiguous" and verdicts["w"].verdict == "trusted"
+    assert Finding.from_dict(Finding("ambiguous", "slow", ("z",)).to_dict()) == Finding("ambiguous", "slow", ("z",))

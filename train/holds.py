@@ -182,3 +182,32 @@ def unbend(x: np.ndarray, c: float, middle: float) -> np.ndarray | None:
     if np.any(denominator <= 0.05):
         return None
     return middle + d / denominator
+
+
+def one_trajectory_check(system, params: Mapping, state: np.ndarray, dt: float, values: Mapping[str, float],
+                         config) -> tuple[list[Finding], dict[str, list[float]]]:
+    """Do the windows' constants agree with one trajectory of the equation over the whole clip?
+    Short windows see little of what acts slowly: a pendulum's light damping takes off a few
+    percent of the swing per window, and the windows' damping can land anywhere near it (the real
+    bob clip: zeta 0.0166 from the windows, 0.0059 from one trajectory over its 31 s, 0.0056
+    from a colour tracker's damped-sine fit). The whole state (T, d) is fitted as one trajectory,
+    starting from the windows' constants; each constant farther from it than SIGMAS standard
+    errors and HALF_TOL of its value gets an ambiguous finding of its own, which names the
+    trajectory's value. Returns the findings and each constant's [trajectory value, its error]."""
+    x = np.asarray(state, dtype=np.float64)
+    if x.shape[0] < 16 or not np.all(np.isfinite(x)):
+        return [], {}
+    fitted = trajectory_fit(system, params, x, dt, values, config)
+    if fitted is None:
+        return [], {}
+    found, numbers = [], {}
+    for n in system.learnable:
+        whole, se = fitted[0][n], fitted[1][n]
+        numbers[n] = [whole, se]
+        gap = abs(float(values[n]) - whole)
+        if gap > HALF_TOL * max(abs(whole), 1e-12) and gap > SIGMAS * se:
+            found.append(Finding("ambiguous", f"the windows give {n} = {float(values[n]):.4g} but one trajectory of the "
+                                 f"equation over the whole clip gives {whole:.4g} +- {se:.2g} (in the fit's own units): "
+                                 "the windows see too little of what acts slowly (light damping over a few periods); "
+                                 "the whole-clip value is the better one", (n,)))
+    return found, numbers

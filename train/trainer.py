@@ -22,7 +22,7 @@ from fitode.errors import TrainingError
 from . import interrupts
 from .config import TrainConfig, resolve_encoder
 from .loop import Callback, StepInfo, Trained, encode_all, train_restarts
-from .holds import perspective_check, whole_clip_check
+from .holds import one_trajectory_check, perspective_check, whole_clip_check
 from .horizon import resolve_window
 from .observe import ObservationModel, resolve_observation
 from .result import Estimate, FitResult, RunRecord
@@ -120,6 +120,9 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
                                                         records[best].final, config)
         if holds is not None:
             findings.append(holds)
+        slow, numbers["one_trajectory"] = one_trajectory_check(system, params, states[best, :n_train], dt,
+                                                                records[best].final, config)
+        findings.extend(slow)
     if perspective is not None:
         numbers["perspective"] = perspective
     verdicts = judge(system.learnable, records, selected, {n: e.value for n, e in estimates.items()}, findings,

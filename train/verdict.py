@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable, Mapping
+from typing import Any, Iterable, Mapping
 
 import numpy as np
 
@@ -43,13 +43,22 @@ QUIET = 0.1  # a quarter of the clip where the latent moves less than this fract
 
 @dataclass(frozen=True)
 class Finding:
-    """One check's outcome: a level and a one-line reason (applies to every constant)."""
+    """One check's outcome: a level and a one-line reason, for every constant or only `names`."""
 
     level: str
     reason: str
+    names: tuple[str, ...] | None = None
 
-    def to_dict(self) -> dict[str, str]:
-        return {"level": self.level, "reason": self.reason}
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"level": self.level, "reason": self.reason}
+        if self.names is not None:
+            out["names"] = list(self.names)
+        return out
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "Finding":
+        names = d.get("names")
+        return cls(d["level"], d["reason"], tuple(names) if names is not None else None)
 
 
 @dataclass(frozen=True)
@@ -171,7 +180,7 @@ def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[st
     out = {}
     for name in names:
         value = estimates[name]
-        found: list[Finding] = list(findings)
+        found: list[Finding] = [f for f in findings if f.names is None or name in f.names]
         if analysis is not None:
             c = analysis[name]
             if not c.separable:
@@ -218,6 +227,6 @@ def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[st
 def rejudge(result, analysis=None, calibrated: Iterable[str] = (), extra: Iterable[Finding] = ()) -> dict[str, Verdict]:
     """The verdicts of a FitResult again, after calibration (which can make a unit-dependent
     constant physical, or show a calibrated value outside the equation's bounds)."""
-    findings = [Finding(f["level"], f["reason"]) for f in result.checks.get("findings", [])] + list(extra)
+    findings = [Finding.from_dict(f) for f in result.checks.get("findings", [])] + list(extra)
     return judge(list(result.parameters), result.runs, result.selected, result.values, findings,
                  analysis=analysis, calibrated=calibrated, own_units=result.meta.get("own_units", ()))
