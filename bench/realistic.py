@@ -88,6 +88,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-steps", type=int, default=None, help="override TrainConfig.max_steps (default: TrainConfig's)")
     parser.add_argument("--restarts", type=int, default=None, help="override TrainConfig.restarts (default: TrainConfig's)")
     parser.add_argument("--seed", type=int, default=0, help="first video seed (default 0)")
+    parser.add_argument("--observe", default=None, metavar="MODEL",
+                        help="the observation model for every scene run (default: each scene's own: its equation "
+                             "file's or auto), e.g. --scenes pendulum --observe position")
     parser.add_argument("--no-calibrate", action="store_true",
                         help="report every quantity uncalibrated (--quick does: the calibration re-fit takes tens of seconds)")
     parser.add_argument("--keep", action="store_true", help="keep every video and run folder under <out>/realistic/")
@@ -270,6 +273,11 @@ def run(args: argparse.Namespace) -> int:
         train["max_steps"] = args.max_steps
     if args.restarts is not None:
         train["restarts"] = args.restarts
+    if args.observe is not None:
+        from fitode.train.config import OBSERVE_CHOICES
+        if args.observe not in OBSERVE_CHOICES:
+            raise SystemExit(f"realistic: error: --observe must be one of {', '.join(OBSERVE_CHOICES)}")
+        train["observe"] = args.observe
     keep_root = Path(args.out) / "realistic" if args.keep else None
     calibrate = not (args.quick or args.no_calibrate)
     tasks = []
