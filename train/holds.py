@@ -143,7 +143,7 @@ def trajectory_fit(system, params: Mapping, x: np.ndarray, dt: float, start: Map
 
 
 def perspective_check(system, params: Mapping, state: np.ndarray, dt: float, start: Mapping[str, float],
-                      config) -> dict | None:
+                      config, straight: tuple[dict[str, float], dict[str, float]] | None = None) -> dict | None:
     """Is the measured path read through a perspective? A camera that looks at a line of motion
     at an angle sees equal steps along it as unequal ones, nearer larger, which is a
     one-dimensional homography of the position: a fall filmed from below the ceiling looks as if
@@ -155,13 +155,15 @@ def perspective_check(system, params: Mapping, state: np.ndarray, dt: float, sta
     of itself with other constants), so the bend that fits is the camera's, not a re-reading
     of the dynamics: its one number is decided by the whole clip.
 
+    straight: trajectory_fit's result for the same state and start, where the caller has it.
     None for a latent of more than one dimension or a fit that fails; otherwise the numbers:
     c and its error, the middle m the bend is about (x -> m + (x - m) / (1 + c (x - m))), the
     bend at the path's ends, the misfit read straight and bent, and whether to apply it."""
     x = np.asarray(state, dtype=np.float64)
     if x.ndim != 2 or x.shape[1] != 1 or x.shape[0] < 16 or not np.all(np.isfinite(x)):
         return None
-    straight = trajectory_fit(system, params, x, dt, start, config)
+    if straight is None:
+        straight = trajectory_fit(system, params, x, dt, start, config)
     bent = trajectory_fit(system, params, x, dt, start, config, bend=True)
     if straight is None or bent is None:
         return None
@@ -185,7 +187,8 @@ def unbend(x: np.ndarray, c: float, middle: float) -> np.ndarray | None:
 
 
 def one_trajectory_check(system, params: Mapping, state: np.ndarray, dt: float, values: Mapping[str, float],
-                         config) -> tuple[list[Finding], dict[str, list[float]]]:
+                         config, fitted: tuple[dict[str, float], dict[str, float]] | None = None,
+                         ) -> tuple[list[Finding], dict[str, list[float]]]:
     """Do the windows' constants agree with one trajectory of the equation over the whole clip?
     Short windows see little of what acts slowly: a pendulum's light damping takes off a few
     percent of the swing per window, and the windows' damping can land anywhere near it (the real
@@ -193,11 +196,13 @@ def one_trajectory_check(system, params: Mapping, state: np.ndarray, dt: float, 
     from a colour tracker's damped-sine fit). The whole state (T, d) is fitted as one trajectory,
     starting from the windows' constants; each constant farther from it than SIGMAS standard
     errors and HALF_TOL of its value gets an ambiguous finding of its own, which names the
-    trajectory's value. Returns the findings and each constant's [trajectory value, its error]."""
+    trajectory's value. fitted: trajectory_fit's result for the same state and start, where the
+    caller has it. Returns the findings and each constant's [trajectory value, its error]."""
     x = np.asarray(state, dtype=np.float64)
     if x.shape[0] < 16 or not np.all(np.isfinite(x)):
         return [], {}
-    fitted = trajectory_fit(system, params, x, dt, values, config)
+    if fitted is None:
+        fitted = trajectory_fit(system, params, x, dt, values, config)
     if fitted is None:
         return [], {}
     found, numbers = [], {}

@@ -22,7 +22,7 @@ from fitode.errors import TrainingError
 from . import interrupts
 from .config import TrainConfig, resolve_encoder
 from .loop import Callback, StepInfo, Trained, encode_all, train_restarts
-from .holds import one_trajectory_check, perspective_check, whole_clip_check
+from .holds import one_trajectory_check, perspective_check, trajectory_fit, whole_clip_check
 from .horizon import resolve_window
 from .observe import ObservationModel, resolve_observation
 from .result import Estimate, FitResult, RunRecord
@@ -87,15 +87,17 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
     coefs = prepared.components[:n_train]  # the training frames' leading principal components
     fit = _train_pass(prepared.inputs, n_train, dt, system, params, config, init, observation, plan, coefs,
                       callback, progress)
-    perspective = None
+    perspective = straight = None  # straight: one trajectory over the best run's state, for both checks
     if observation.perspective and not fit.interrupted:
+        straight = trajectory_fit(system, params, fit.states[fit.best, :n_train], dt, fit.records[fit.best].final,
+                                  config)
         perspective = perspective_check(system, params, fit.states[fit.best, :n_train], dt,
-                                        fit.records[fit.best].final, config)
+                                        fit.records[fit.best].final, config, straight=straight)
         if perspective is not None and perspective["apply"]:
             reread = observation.reread(prepared, fit.states[fit.best], perspective, n_train)
             perspective["apply"] = reread is not None
             if reread is not None:
-                prepared = reread
+                prepared, straight = reread, None
                 fit = _train_pass(prepared.inputs, n_train, dt, system, params, config, init, observation, plan,
                                   coefs, callback, progress)
     records, latents, rollouts, states = fit.records, fit.latents, fit.rollouts, fit.states
@@ -121,7 +123,7 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         if holds is not None:
             findings.append(holds)
         slow, numbers["one_trajectory"] = one_trajectory_check(system, params, states[best, :n_train], dt,
-                                                                records[best].final, config)
+                                                                records[best].final, config, fitted=straight)
         findings.extend(slow)
     if perspective is not None:
         numbers["perspective"] = perspective
