@@ -214,7 +214,6 @@ class PositionObservation(ObservationModel):
                            "from them: something else changes in the view as much as the object; give --roi around it")
         return Prepared(z.to(frames.dtype).reshape(-1, 1, 1, 1), out.components, 1, note, caution)
 
-
     def reread(self, prepared: Prepared, state: np.ndarray, perspective: dict, fit_frames: int) -> Prepared | None:
         """The path read through the camera's perspective that holds.perspective_check found on a
         first training's state (T, 1), which is affine in the path: the encoder's new input is
@@ -343,17 +342,16 @@ def mend_one_way(path: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Te
     n_fit = n if n_fit is None else int(n_fit)
     if n_fit < 8:
         return path, 0
-    x = path.double().cpu().numpy()
-    ranks = np.argsort(np.argsort(x[:n_fit]))
-    if abs(float(np.corrcoef(ranks, np.arange(n_fit))[0, 1])) < ONE_WAY:
+    if one_way(path[:n_fit]) < ONE_WAY:
         return path, 0
+    x = path.double().cpu().numpy()
     half = max(2, min(MEND_SPAN // 2, n // 4))
     mended, off = x, np.zeros(n, dtype=bool)
     for _ in range(2):  # the second round against the mended path: the first's median leans towards a run of strays
         padded = np.concatenate([2 * mended[0] - mended[half:0:-1], mended,
                                  2 * mended[-1] - mended[-2:-half - 2:-1]])
         residual = x - np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1), axis=1)
-        spread = 1.4826 * float(np.median(np.abs(residual)))
+        spread = float(_noise(torch.from_numpy(np.abs(residual))))
         off = np.abs(residual) > max(MEND_SIGMAS * spread, MEND_PIXELS)
         if not off.any() or off.all():
             return path, 0
@@ -361,6 +359,14 @@ def mend_one_way(path: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Te
         mended = x.copy()
         mended[off] = np.interp(np.flatnonzero(off), good, x[good])
     return torch.as_tensor(mended, dtype=path.dtype, device=path.device), int(off.sum())
+
+
+def one_way(path: torch.Tensor) -> float:
+    """How one way a path (T,) runs in time: the absolute rank correlation of its values with
+    their frame numbers (1: monotone; about 0: back and forth)."""
+    ranks = torch.argsort(torch.argsort(path)).double()
+    t = torch.arange(len(ranks), dtype=torch.float64, device=ranks.device)
+    return abs(float(torch.corrcoef(torch.stack([ranks, t]))[0, 1]))
 
 
 def line_of_motion(xy: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Tensor, torch.Tensor]:
@@ -509,7 +515,4 @@ def look(frames: torch.Tensor) -> Look:
     if xy.shape[0] < 3 or float((xy - xy.mean(dim=0)).abs().max()) == 0:
         return Look(0.0, max(pixels, 1.0) ** 0.5, 0.0, gap)
     _, path = line_of_motion(xy)
-    ranks = torch.argsort(torch.argsort(path)).double()
-    t = torch.arange(len(ranks), dtype=torch.float64, device=ranks.device)
-    one_way = abs(float(torch.corrcoef(torch.stack([ranks, t]))[0, 1]))
-    return Look(float(path.max() - path.min()), max(pixels, 1.0) ** 0.5, one_way, gap)
+    return Look(float(path.max() - path.min()), max(pixels, 1.0) ** 0.5, one_way(path), gap)
