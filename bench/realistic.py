@@ -4,7 +4,7 @@ Scenes from fitode.synth.scene, modelled on the paper's real dataset (Delfys75):
 60 fps, textured backgrounds, shading, sensor noise, blur and JPEG; each setting of each scene
 rendered --videos times (default 5) with seeds 0..N-1 (different initial conditions, textures
 and noise). Every video is written to an mp4 and fitted the way a user would:
-`fitode.pipeline.run_video` (the `fitode VIDEO` job: default preprocessing, gray, short side 64
+`fitode.pipeline.run_job` (the `fitode VIDEO` job: default preprocessing, gray, short side 64
 so 64x114, automatic stride, every TrainConfig default, 3 restarts), with the scene's shipped
 equation file:
 
@@ -130,7 +130,7 @@ def fit_video(task: dict[str, Any]) -> dict[str, Any]:
     """Render one scene video, write it as mp4, fit it with the pipeline; runs in a worker."""
     from fitode.eqfile import resolve
     from fitode.errors import FitodeError
-    from fitode.pipeline import run_video
+    from fitode.pipeline import run_job
     from fitode.synth import scene, write_video
     from fitode.video import read_video
 
@@ -159,7 +159,7 @@ def fit_video(task: dict[str, Any]) -> dict[str, Any]:
         out["calibration"] = points
         t1 = time.perf_counter()
         try:
-            outcome = run_video(path, folder / "run", calibrate=points, log=None, progress=False,
+            outcome = run_job(path, folder / "run", calibrate=points, log=None, progress=False,
                                 **eq_args, **{**spec.get("train", {}), **task["train"]})
         except FitodeError as exc:
             out.update(status="failed", error=str(exc), estimate=math.nan, raw=math.nan, fit_s=time.perf_counter() - t1)
@@ -168,13 +168,13 @@ def fit_video(task: dict[str, Any]) -> dict[str, Any]:
         rep, res = outcome.report, outcome.result
         q = spec["quantity"]
         out.update(status=rep.get("status"), estimate=rep["parameters"][q]["value"],
-                   std_restarts=rep["parameters"][q]["std"], raw=res.parameters[q].value,
+                   std_restarts=rep["parameters"][q]["std"], raw=res.parameters[q].latent_value if res.parameters[q].calibrated else res.parameters[q].value,
                    calibrated=bool(rep["parameters"][q].get("calibrated")),
                    frames=int(len(res.time)), dt=float(res.dt), stride=rep.get("input", {}).get("stride"),
                    runs=[{"init": r.init, "final": r.final, "steps": r.steps, "converged": r.converged,
                           "status": r.status, "loss": r.loss, "wall_s": r.wall_s} for r in res.runs],
                    selected=list(res.selected), warnings=list(rep.get("warnings", [])),
-                   verdict=rep["parameters"][q].get("verdict"), observation=res.meta.get("observation"))
+                   verdict=rep["parameters"][q].get("verdict"), observation=res.meta["plan"]["observation"]["value"])
         return out
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

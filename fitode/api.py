@@ -1,8 +1,18 @@
-"""`fitode.fit`: the public API on arrays of frames."""
+"""`fitode.fit`: the public API on arrays of frames, and the three steps it is made of.
+
+    request(...)                 every check that needs no frames (the equation, the options,
+                                 the calibration text): a FitRequest
+    plan(request, frames, dt)    every choice resolved once on the frames: a FitPlan
+    execute(request, plan, ...)  training, the calibration when asked, the assessment: a FitResult
+
+`fit` runs the three; the command line runs them apart, so that a typo costs no video decode and
+the header it prints before training is the plan itself.
+"""
 from __future__ import annotations
 
 import math
-from typing import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any, Iterable, Mapping
 
 import numpy as np
 import torch
@@ -11,15 +21,36 @@ from fitode.eqparse import OdeSystem, ParamSpec
 from fitode.errors import ConfigError, FitodeError
 from fitode.train.config import TrainConfig
 from fitode.train.observe import ObservationModel
+from fitode.train.plan import FitPlan, make_plan
 from fitode.train.result import FitResult
 from fitode.train.trainer import Callback, fit_frames
+
+
+@dataclass(frozen=True)
+class FitRequest:
+    """What the user asked for, checked, before any frame is seen.
+
+    spec: the equation file's EquationSpec (None for equation text or an OdeSystem). observe:
+    a model name, an instance or None (auto); observe_source says where a name came from.
+    calibration: parsed --calibrate points (fitode.calibrate.CalibrationPoint), empty for none.
+    """
+
+    system: OdeSystem
+    params: Mapping[str, ParamSpec]
+    config: TrainConfig
+    init: Mapping[str, float] | None = None
+    train_fraction: float = 1.0
+    observe: str | ObservationModel | None = None
+    observe_source: str = "as asked"
+    calibration: tuple = ()
+    spec: Any = None
 
 
 def fit(frames, dt: float, *, eq: str | None = None, system: str | OdeSystem | None = None,
         eq_file: str | None = None, const: Mapping[str, float] | None = None, free: Iterable[str] = (),
         init: Mapping[str, float] | None = None, params: Mapping[str, ParamSpec] | None = None,
         prior: tuple[float, float] | None = None, train_fraction: float = 1.0,
-        observe: str | ObservationModel | None = None,
+        observe: str | ObservationModel | None = None, calibrate: str | None = None, time_offset: float = 0.0,
         callback: Callback | None = None, progress: bool = True, **options) -> FitResult:
     """Estimate the learnable constants of an equation from a frame sequence.
 
@@ -28,39 +59,109 @@ def fit(frames, dt: float, *, eq: str | None = None, system: str | OdeSystem | N
     The equation is given as text (eq), a shipped system name or an OdeSystem (system), or an
     equation file (eq_file). const fixes constants, free frees known ones, init sets starting
     values for every restart, prior overrides the equation file's (mean, std). observe is the
-    observation model: "auto" (None: chosen from the equation and the frames), "any", "brightness", or a
-    fitode.train.observe.ObservationModel.
+    observation model: "auto" (None: the equation file's, else chosen from the equation and the
+    frames), "any", "brightness", "position", "size", "distance", or an ObservationModel instance.
+    calibrate: known values of states, "h(0)=0.07; h(25)=0.01" (times in seconds from the first
+    frame, plus time_offset): scale-dependent constants come back in physical units, judged as such.
     options: any TrainConfig field (restarts, max_steps, window, integrator, substeps, encoder,
     use_kl, lr, const_lr, batch_windows, seed, device, threads, ...). Every bad option raises a
     fitode.ConfigError naming it, before any work.
     """
-    ode, spec_params, spec_prior, spec_observe = _equation(eq, system, eq_file, const, free)
-    if observe is None and spec_observe not in (None, "auto"):
-        from fitode.train.observe import resolve_observation
-        observe = resolve_observation(spec_observe, ode, light=options.get("light", "srgb"),
-                                      source="from the equation file")
+    req = request(eq=eq, system=system, eq_file=eq_file, const=const, free=free, init=init, params=params,
+                  prior=prior, train_fraction=train_fraction, observe=observe, calibrate=calibrate, **options)
+    x = as_frames(frames)
+    return execute(req, plan(req, x, dt), x, time_offset=time_offset, callback=callback, progress=progress)
+
+
+def request(*, eq: str | None = None, system: str | OdeSystem | None = None, eq_file: str | None = None,
+            const: Mapping[str, float] | None = None, free: Iterable[str] = (),
+            init: Mapping[str, float] | None = None, params: Mapping[str, ParamSpec] | None = None,
+            prior: tuple[float, float] | None = None, train_fraction: float = 1.0,
+            observe: str | ObservationModel | None = None, calibrate: str | None = None,
+            **options) -> FitRequest:
+    """Every check of a fit request that needs no frames, in one place (the API, the pipeline and
+    batch all come through here): the equation, the training options, the prior, init's names,
+    train_fraction, the observation's name and the calibration's text."""
+    ode, spec_params, spec_prior, spec_observe, spec = _equation(eq, system, eq_file, const, free)
     if params is not None:
         spec_params = {**spec_params, **params}
-    config = checked_config(ode, options, prior=prior, default_prior=spec_prior, init=init,
-                            train_fraction=train_fraction, params=spec_params)
-    if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not (dt > 0 and np.isfinite(dt)):
-        raise ConfigError(f"dt must be a positive number of seconds, got {dt!r}")
-    x = as_frames(frames)
-    n_train = max(int(round(train_fraction * x.shape[0])), 1)
-    return fit_frames(x, float(dt), ode, spec_params, config, train_frames=n_train,
-                      init=init, callback=callback, progress=progress, observe=observe)
-
-
-def checked_config(ode: OdeSystem, options: Mapping, *, prior=None, default_prior=(0.0, 1.0),
-                   init: Mapping[str, float] | None = None, train_fraction: float = 1.0,
-                   params: Mapping[str, ParamSpec] | None = None) -> TrainConfig:
-    """Every check of a fit request that needs no frames, in one place (the API, the pipeline and
-    batch all come through here): the training options, the prior, init's names, train_fraction."""
     if "prior" in options:
         raise ConfigError("give the prior as prior=(mean, std), not as a training option")
-    config = TrainConfig.from_options(options, prior=tuple(prior) if prior is not None else tuple(default_prior))
+    config = TrainConfig.from_options(options, prior=tuple(prior) if prior is not None else tuple(spec_prior))
     if not ode.learnable:
         raise FitodeError("the equation has no learnable constant to estimate (every name is fixed)")
+    _check_init(ode, init, spec_params)
+    if isinstance(train_fraction, bool) or not isinstance(train_fraction, (int, float)) or not 0 < train_fraction <= 1:
+        raise ConfigError(f"train_fraction must be in (0, 1], got {train_fraction!r}")
+    if config.device.startswith("cuda") and not torch.cuda.is_available():
+        raise ConfigError(f"device {config.device}: no CUDA device is available here (torch {torch.__version__}, "
+                          f"built {'with' if torch.version.cuda else 'without'} CUDA); use cpu")
+    source = "as asked"
+    if observe is None and spec_observe not in (None, "auto"):
+        observe, source = spec_observe, "from the equation file"
+    if isinstance(observe, str):
+        from fitode.train.config import OBSERVE_CHOICES
+        if observe not in OBSERVE_CHOICES:
+            raise ConfigError(f"unknown observation model {observe!r}; choose one of {', '.join(OBSERVE_CHOICES)}")
+    points: tuple = ()
+    if calibrate is not None:
+        from fitode.calibrate import parse_calibration
+        points = tuple(parse_calibration(calibrate, ode.states))
+    return FitRequest(system=ode, params=dict(spec_params), config=config, init=dict(init) if init else None,
+                      train_fraction=float(train_fraction), observe=observe, observe_source=source,
+                      calibration=points, spec=spec)
+
+
+def plan(req: FitRequest, frames: torch.Tensor, dt: float) -> FitPlan:
+    """Every choice of the fit resolved on its frames (float (T, C, H, W), as_frames)."""
+    if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not (dt > 0 and np.isfinite(dt)):
+        raise ConfigError(f"dt must be a positive number of seconds, got {dt!r}")
+    n_train = max(int(round(req.train_fraction * frames.shape[0])), 1)
+    return make_plan(req.system, req.params, frames, float(dt), req.config, observe=req.observe, n_train=n_train,
+                     init=req.init, observe_source=req.observe_source)
+
+
+def execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_offset: float = 0.0,
+            callback: Callback | None = None, progress: bool = False) -> FitResult:
+    """Train the plan, calibrate when asked (not after an interruption: unfinished training gives
+    no latent worth a scale), and assess: the FitResult with its verdicts and warnings."""
+    from fitode.eqparse import analyse
+    from fitode.train.assess import assess
+
+    result = fit_frames(frames, fit_plan, callback=callback, progress=progress)
+    try:
+        analysis = analyse(req.system)
+    except Exception:  # noqa: BLE001 - the analysis is advice; sympy can fail on unusual equations
+        analysis = None
+    calibrated, extra = (), []
+    if req.calibration and not result.meta.get("interrupted"):
+        calibrated, extra = _calibrate(result, req, analysis, time_offset)
+    elif req.calibration:
+        result.meta["calibration_skipped"] = "interrupted"
+    assess(result, analysis, calibrated=calibrated, extra=extra,
+           physical_units=fit_plan.observation.physical_units).apply(result)
+    return result
+
+
+def _calibrate(result: FitResult, req: FitRequest, analysis, time_offset: float):
+    """Apply the calibration to the result in place: values of the converted constants in
+    physical units (their latent values kept beside them) and the calibrated trajectories."""
+    from fitode.calibrate import calibrate_result
+    from fitode.report import analysis_dict
+
+    cal = calibrate_result(result, req.system, req.params, list(req.calibration), analysis_dict(analysis),
+                           time_offset=time_offset, seed=req.config.seed)
+    for name, c in cal.constants.items():
+        if c["converted"]:
+            est = result.parameters[name]
+            est.latent_value, est.value, est.std, est.calibrated = est.value, c["after"], c["std_after"], True
+    result.calibration = {**cal.to_dict(), "lines": cal.lines(), "latent": cal.latent.tolist(),
+                          "rollout": cal.rollout.tolist(), "time_offset": time_offset,
+                          "ylabels": cal.ylabels(result.states)}
+    return cal.converted_names(), cal.findings(req.params)
+
+
+def _check_init(ode: OdeSystem, init: Mapping[str, float] | None, params: Mapping[str, ParamSpec]) -> None:
     unknown = sorted(set(init or {}) - set(ode.learnable))
     if unknown:
         raise ConfigError(f"init names {', '.join(unknown)}, which is not a learnable constant "
@@ -72,12 +173,6 @@ def checked_config(ode: OdeSystem, options: Mapping, *, prior=None, default_prio
                 or (lo is not None and not v > lo) or (hi is not None and not v < hi):
             raise ConfigError(f"init {name}={v!r} must be a number strictly inside its bounds "
                               f"({'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'})")
-    if isinstance(train_fraction, bool) or not isinstance(train_fraction, (int, float)) or not 0 < train_fraction <= 1:
-        raise ConfigError(f"train_fraction must be in (0, 1], got {train_fraction!r}")
-    if config.device.startswith("cuda") and not torch.cuda.is_available():
-        raise ConfigError(f"device {config.device}: no CUDA device is available here (torch {torch.__version__}, "
-                          f"built {'with' if torch.version.cuda else 'without'} CUDA); use cpu")
-    return config
 
 
 def as_frames(frames) -> torch.Tensor:
@@ -97,15 +192,15 @@ def as_frames(frames) -> torch.Tensor:
     return x.contiguous()
 
 
-def _equation(eq, system, eq_file, const, free) -> tuple[OdeSystem, dict[str, ParamSpec], tuple[float, float],
-                                                         str | None]:
-    """The system, its parameters, prior and observation model (None: auto) from the equation given."""
+def _equation(eq, system, eq_file, const, free):
+    """The system, its parameters, prior, observation model (None: auto) and the equation file's
+    spec (None for text or an OdeSystem) from the equation given."""
     if isinstance(system, OdeSystem):
         if eq is not None or eq_file is not None:
             raise FitodeError("give the equation once: eq, system or eq_file")
-        return system, {}, (0.0, 1.0), None
+        return system, {}, (0.0, 1.0), None, None
     from fitode.eqfile import resolve
-    ode, spec = resolve(eq=eq, eq_file=eq_file, system=system, const=const, free=free)
+    ode, spec = resolve(eq=eq, eq_file=eq_file, system=system, const=dict(const or {}), free=tuple(free or ()))
     if spec is None:
-        return ode, {}, (0.0, 1.0), None
-    return ode, dict(spec.parameters), (spec.prior_mean, spec.prior_std), spec.observe
+        return ode, {}, (0.0, 1.0), None, None
+    return ode, dict(spec.parameters), (spec.prior_mean, spec.prior_std), spec.observe, spec

@@ -74,11 +74,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args, const, init, say):
-    from fitode.pipeline import DEFAULT_TRAIN_FRACTION, run_video
-    return run_video(
-        args.video, args.out, eq=args.eq, eq_file=args.eq_file, system=args.system, const=const,
-        free=tuple(args.free), init=init or None, prior=args.prior, fps=args.fps, start=args.start,
-        end=args.end, roi=args.roi, size=args.size, color=args.color, stride=args.stride, mask=args.mask,
-        calibrate=args.calibrate, observe=args.observe,
-        train_fraction=args.train_fraction if args.train_fraction is not None else DEFAULT_TRAIN_FRACTION,
-        progress=not args.quiet and sys.stderr.isatty(), log=None if args.quiet else say, **training_options(args))
+    from fitode.pipeline import ReadOptions, run_video
+    from fitode.video import video_kwargs
+    fit = dict(eq=args.eq, eq_file=args.eq_file, system=args.system, const=const, free=tuple(args.free),
+               init=init or None, prior=args.prior, calibrate=args.calibrate, observe=args.observe,
+               **training_options(args))
+    if args.train_fraction is not None:
+        fit["train_fraction"] = args.train_fraction
+    return run_video(args.video, args.out, read=ReadOptions(**video_kwargs(args)), fit=fit,
+                     progress=not args.quiet and sys.stderr.isatty(), log=None if args.quiet else say)

@@ -16,7 +16,6 @@ from typing import Any, Callable, Iterable, Mapping
 from fitode.errors import FitodeError
 from fitode.train.history import History  # torch-free, like everything this module imports at the top
 
-DEFAULT_TRAIN_FRACTION = 1.0
 RUNS_DIR = "fitode-runs"
 
 
@@ -38,89 +37,86 @@ class RunOutcome:
     warnings: list[str] = field(default_factory=list)
 
 
-def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str | None = None,
-              eq_file: str | None = None, system: str | None = None, const: Mapping[str, float] | None = None,
-              free: Iterable[str] = (), init: Mapping[str, float] | None = None,
-              prior: tuple[float, float] | None = None, fps: float | None = None, start: float | None = None,
-              end: float | None = None, roi=None, size=None, color: bool = False, stride: int | str = "auto",
-              mask=None, calibrate: str | None = None, observe: str | None = None,
-              train_fraction: float = DEFAULT_TRAIN_FRACTION,
-              progress: bool = False, log: Callable[[str], None] | None = print,
-              **train_options) -> RunOutcome:
+@dataclass(frozen=True)
+class ReadOptions:
+    """What to read of a video: the keywords of fitode.video.read_video (roi, size and stride may be
+    given as the text the command line takes)."""
+
+    fps: float | None = None
+    start: float | None = None
+    end: float | None = None
+    roi: Any = None
+    size: Any = None
+    color: bool = False
+    stride: int | str = "auto"
+    mask: Any = None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {f: getattr(self, f) for f in READ_OPTIONS}
+
+
+READ_OPTIONS = ("fps", "start", "end", "roi", "size", "color", "stride", "mask")
+
+
+def run_job(video: str | Path, out_dir: str | Path | None = None, *, progress: bool = False,
+            log: Callable[[str], None] | None = print, callback=None, **options) -> RunOutcome:
+    """run_video with its options flat, as a batch manifest's row names them: the keywords of
+    ReadOptions go to the reader, every other one to fitode.api.request (fitode.fit's keywords)."""
+    read = ReadOptions(**{k: options.pop(k) for k in READ_OPTIONS if k in options})
+    return run_video(video, out_dir, read=read, fit=options, progress=progress, log=log, callback=callback)
+
+
+def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: ReadOptions = ReadOptions(),
+              fit: Mapping[str, Any], progress: bool = False, log: Callable[[str], None] | None = print,
+              callback=None) -> RunOutcome:
     """Fit one video and write its output folder; see the module docstring.
 
-    out_dir None makes a new folder fitode-runs/<video-stem>-<YYYYmmdd-HHMMSS>[-N] under the
-    current directory; a given out_dir must not exist or be empty. log receives the human
-    text (what was understood, per-run summaries, calibration, where files went); None
-    silences it. train_options are TrainConfig fields (restarts, max_steps, window,
-    integrator, encoder, device, seed, ...) plus `callback` (called with every StepInfo).
+    read: what to read of the video. fit: the keyword arguments of fitode.fit besides the frames
+    (eq/eq_file/system, const, free, init, prior, observe, calibrate, train_fraction and the
+    training options). out_dir None makes a new folder fitode-runs/<video-stem>-<YYYYmmdd-HHMMSS>[-N]
+    under the current directory; a given out_dir must not exist or be empty. log receives the
+    human text (what was understood, per-run summaries, calibration, where files went); None
+    silences it. callback is called with every StepInfo.
     Raises FitodeError (one-line message) for any bad input; KeyboardInterrupt propagates after
     the partial folder is written (RunInterrupted, carrying the RunOutcome, when the trainer
     returned what it had).
     """
+    from fitode import api
     from fitode import report as rep
 
     say = log if log is not None else (lambda _line: None)
-    user_callback = train_options.pop("callback", None)
 
     # Cheap checks first: a typo in an option, the equation or the calibration must not cost a video decode.
-    from fitode.api import checked_config
-    ode, spec = _resolve_equation(eq, eq_file, system, const, free)
-    spec_prior = (spec.prior_mean, spec.prior_std) if spec is not None else (0.0, 1.0)
-    config = checked_config(ode, train_options, prior=prior, default_prior=spec_prior, init=init,
-                            train_fraction=train_fraction, params=spec.parameters if spec is not None else None)
-    use_prior = config.prior
-    points = None
-    if calibrate is not None:
-        from fitode.calibrate import parse_calibration
-        points = parse_calibration(calibrate, ode.states)
+    req = api.request(**fit)
+    ode, spec = req.system, req.spec
     target = _check_out_dir(out_dir)
-    ident = rep.identifiability(ode)
-    analysis = rep.analysis_dict(ident)
-    params = dict(spec.parameters) if spec is not None else {}
+    analysis = rep.analysis_dict(rep.identifiability(ode))
 
-    clip = _read(video, fps=fps, start=start, end=end, roi=roi, size=size, color=color, stride=stride, mask=mask,
-                 progress=progress)
+    clip = _read(video, **read.as_dict(), progress=progress)
     n_frames = int(clip.frames.shape[0])
-    n_train = max(int(round(train_fraction * n_frames)), 1)
     if n_frames == 0:
         raise FitodeError(f"{video}: no frames to fit (check --start/--end)")
-    from fitode.train.horizon import resolve_window
-    config, window_reason = resolve_window(config, clip.frames[:n_train], clip.dt)
-    train_options["window"] = config.window
-    if n_train < config.window + 1:
-        raise FitodeError(f"{n_train} training frames are fewer than one window of {config.window} frames plus one; "
-                          "use a longer clip, a smaller --stride or a smaller --window")
     t0 = float(clip.start_frame) / float(clip.fps)  # video time of frame 0: what --start skipped
-    if points is not None:
+    if req.calibration:
         from fitode.calibrate import check_times
-        check_times(points, t0, t0 + (n_frames - 1) * clip.dt, slack=0.5 * clip.dt)
-
-    from fitode.api import as_frames
-    from fitode.train.observe import resolve_observation
-    named = spec.observe if observe is None and spec is not None else None
-    observation = resolve_observation(observe or named, ode, as_frames(clip.frames[:n_train]), config.light,
-                                      config.encoder, source="from the equation file" if named else "as asked")
-    settings = {**config.as_dict(), "train_fraction": train_fraction, "observe": observation.name,
-                "window_reason": window_reason}
-    for line in rep.understanding_lines(ode, spec, analysis, clip, n_train, settings, observation):
+        check_times(req.calibration, t0, t0 + (n_frames - 1) * clip.dt, slack=0.5 * clip.dt)
+    frames = api.as_frames(clip.frames)
+    plan = api.plan(req, frames, clip.dt)
+    for line in rep.understanding_lines(ode, spec, analysis, clip, plan):
         say(line)
 
     folder = _make_out_dir(target, Path(str(video)).stem)
-    recorder = _Recorder(ode.learnable, user_callback)
-    options = {"fps": fps, "start": start, "end": end, "roi": roi, "size": size, "color": color, "stride": stride,
-               "mask": None if mask is None else str(mask), "calibrate": calibrate}
-    report = rep.base_report(video, clip, ode, spec, analysis, settings, n_train, folder, options, t0)
+    recorder = _Recorder(ode.learnable, callback)
+    options = {**read.as_dict(), "mask": None if read.mask is None else str(read.mask),
+               "calibrate": fit.get("calibrate")}
+    report = rep.base_report(video, clip, ode, spec, analysis, plan, req.train_fraction, folder, options, t0)
     rep.write_json(report, folder / "result.json")  # "running": even a hard kill leaves a marked folder
     plots_done: list[str] = []
     from fitode import plots
     _try_plot(plots.plot_frames, folder / "frames.png", clip.frames, clip.dt, t0=t0, plots_done=plots_done)
 
-    from fitode.api import fit
     try:
-        result = fit(clip.frames, clip.dt, system=ode, params=params, init=init, prior=use_prior,
-                     train_fraction=train_fraction, callback=recorder, progress=progress, observe=observation,
-                     **train_options)
+        result = api.execute(req, plan, frames, time_offset=t0, callback=recorder, progress=progress)
     except KeyboardInterrupt:
         _write_partial(report, recorder, folder, "incomplete", "interrupted (Ctrl-C) during training", plots_done)
         say(f"interrupted: partial results in {folder}")
@@ -132,28 +128,19 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
     interrupted = bool(result.meta.get("interrupted"))
     for line in rep.run_lines(result):
         say(line)
-    calibration = None
-    if points is not None and not interrupted:
-        from fitode.calibrate import calibrate_result
-        calibration = calibrate_result(result, ode, params, points, analysis, time_offset=t0,
-                                       seed=int(settings.get("seed", 0)))
-        for line in calibration.lines():
-            say(line)
-        from fitode.train.verdict import rejudge
-        result.verdicts = {n: v.to_dict() for n, v in rejudge(
-            result, ident, calibrated=calibration.converted_names(), extra=calibration.findings(params)).items()}
-    rep.complete_report(report, result, analysis, calibration, t0)
+    for line in (result.calibration or {}).get("lines", []):
+        say(line)
+    rep.complete_report(report, result, analysis, t0)
     if interrupted:
         stopped = [r for r in result.runs if r.status == "interrupted"]
         where = f"run {stopped[0].index + 1} at step {stopped[0].steps}" if stopped else "training"
         report["status"] = "incomplete"
         report["error"] = f"interrupted (Ctrl-C) in {where}"
-        report["warnings"].append(f"interrupted (Ctrl-C) in {where}: the estimates come from unfinished "
-                                  "training" + ("; --calibrate was not applied" if points is not None else ""))
-    result.meta.update({"input": report["input"], "calibration": report["calibration"]})
+        if req.calibration:
+            report["warnings"].append("--calibrate was not applied: training was interrupted")
+    result.meta.update({"input": report["input"]})
     result.save(folder / "fit.json")
-    plot_warnings = _plots_for_result(folder, result, report, calibration, plots_done, t0)
-    report["warnings"] += plot_warnings
+    report["warnings"] += _plots_for_result(folder, result, report, plots_done, t0)
     report["files"] = sorted(["result.json", "fit.json", *plots_done])
     rep.write_json(report, folder / "result.json")
     say(f"wrote {folder}/ ({', '.join(report['files'])})")
@@ -164,11 +151,6 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, eq: str |
 
 
 # ---------------------------------------------------------------------------------------------
-def _resolve_equation(eq, eq_file, system, const, free):
-    from fitode.eqfile import resolve
-    return resolve(eq=eq, eq_file=eq_file, system=system, const=dict(const or {}), free=tuple(free))
-
-
 def _read(video, **kw):
     from fitode import video as vid
     path = Path(str(video))
@@ -244,8 +226,10 @@ def _try_plot(fn, path: Path, *args, plots_done: list[str], **kw) -> str | None:
     return None
 
 
-def _plots_for_result(folder: Path, result, report, calibration, plots_done: list[str], t0: float) -> list[str]:
+def _plots_for_result(folder: Path, result, report, plots_done: list[str], t0: float) -> list[str]:
     from dataclasses import asdict
+
+    import numpy as np
 
     from fitode import plots
     runs = [asdict(r) for r in result.runs]
@@ -255,8 +239,9 @@ def _plots_for_result(folder: Path, result, report, calibration, plots_done: lis
     estimates = {k: v["value"] for k, v in report["parameters"].items()}
     units = {k: v.get("unit") for k, v in report["parameters"].items()}
     latent, rollout, ylabels = result.latent, result.rollout, None
-    if calibration is not None:
-        latent, rollout, ylabels = calibration.latent, calibration.rollout, calibration.ylabels(result.states)
+    if result.calibration is not None:
+        latent, rollout = np.asarray(result.calibration["latent"]), np.asarray(result.calibration["rollout"])
+        ylabels = result.calibration["ylabels"]
     warnings = [
         _try_plot(plots.plot_latent, folder / "latent.png", result.time + t0, latent, rollout, result.train_frames,
                   result.states, window=int(result.settings.get("window", 0)) or None, ylabels=ylabels,

@@ -8,7 +8,8 @@ result.json layout (every run of `fitode VIDEO ...` writes one):
                       stride, stride_reason, dt, duration_s, start, end, roi, size, color, mask
     equation          text, normal_form, states, learnable, fixed
     identifiability   per constant: separable, combination, scale, reason (null when unavailable)
-    parameters        NAME: value, std, n_runs, unit, scale, latent_units, best_run_only, calibrated, warnings
+    parameters        NAME: value, std, n_runs, unit, scale, latent_units, best_run_only, calibrated,
+                      latent_value (before calibration), verdict, verdict_reason, verdict_other_reasons
     calibration       null, or the affine maps and the constants it converted (see fitode.calibrate)
     runs              every restart: index, seed, init, final, loss, steps, status, error, converged,
                       wall_s, selected (histories are in fit.json, or history.json for a partial run)
@@ -16,7 +17,10 @@ result.json layout (every run of `fitode VIDEO ...` writes one):
     settings          every training setting (TrainConfig fields, prior, train_fraction)
     trajectory        time (s), latent and rollout (T x d) of the best run, train_frames;
                       physical units when calibrated
-    warnings          every warning the table shows
+    plan              the choices of the fit (observation, encoder, window): value and reason each
+    checks            the numbers behind the verdicts and every finding (fitode.train.assess)
+    warnings          findings that are no verdict's headline reason, and what went wrong around the fit
+    notes             what happened to the restarts (left out, failed) and why, no judgement
     files             what the folder holds
 """
 from __future__ import annotations
@@ -29,8 +33,6 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from fitode.jsonio import to_jsonable, write_json  # noqa: F401 - write_json: callers use rep.write_json
-
-SPREAD_WARN = 0.05  # restarts "disagree" when their standard deviation exceeds 5% of |value|
 
 
 # ----------------------------------------------------------------------------- identifiability
@@ -81,15 +83,15 @@ def scale_dependent(analysis: Mapping | None, name: str) -> bool:
 
 
 # ----------------------------------------------------------------------------- before training
-def understanding_lines(ode, spec, analysis, clip, n_train: int, settings: Mapping[str, Any],
-                        observation=None) -> list[str]:
-    """What fitode understood, printed before it spends minutes training."""
+def understanding_lines(ode, spec, analysis, clip, plan) -> list[str]:
+    """What fitode understood, printed before it spends minutes training: the clip, the equation,
+    what the video can measure, and the plan's choices with their reasons."""
     from fitode import __version__
     lines = [f"fitode {__version__}"]
     lines += _clip_lines(clip)
     n = int(clip.frames.shape[0])
-    if n_train < n:
-        lines.append(f"training frames: the first {n_train} of {n} ({(n_train - 1) * clip.dt:.4g} s); "
+    if plan.n_train < n:
+        lines.append(f"training frames: the first {plan.n_train} of {n} ({(plan.n_train - 1) * clip.dt:.4g} s); "
                      "the rest shows extrapolation")
     for i, nf in enumerate(ode.normal_form()):
         lines.append(f"{'equation:' if i == 0 else '         '} {nf}")
@@ -98,26 +100,14 @@ def understanding_lines(ode, spec, analysis, clip, n_train: int, settings: Mappi
     lines.append(f"learnable: {', '.join(learn)}")
     if ode.fixed:
         lines.append("fixed: " + ", ".join(f"{k} = {v:.6g}" for k, v in ode.fixed.items()))
-    lines.append(f"prior on the latent: N({settings['prior'][0]:g}, {settings['prior'][1]:g}^2)")
+    lines.append(f"prior on the latent: N({plan.prior[0]:g}, {plan.prior[1]:g}^2)")
     if (analysis or {}).get("lines"):
         lines.append("identifiability:")
         lines += [f"  {line}" for line in analysis["lines"]]
-    if settings.get("gauge", True):
+    if plan.config.gauge:
         from fitode.cmd_check import gauge_lines
         lines += gauge_lines(ode)
-    from fitode.train.config import TrainConfig, resolve_encoder
-    _, encoder = resolve_encoder(TrainConfig(encoder=settings["encoder"]), ode, observation)
-    lines.append(f"training: {settings['restarts']} restarts, up to {settings['max_steps']} steps, window "
-                 f"{settings['window']} frames, {settings['integrator']} integrator, {settings['device']}, "
-                 f"seed {settings['seed']}")
-    if settings.get("window_reason"):
-        lines.append(f"window: {settings['window_reason']}")
-    if observation is not None:
-        lines.append(f"observation: {observation.reason}")
-        if getattr(observation, "light", None) == "srgb":
-            lines.append("light: pixel values decoded from sRGB to linear light (--light linear if they already are)")
-    lines.append(f"encoder: {encoder}")
-    return lines
+    return lines + plan.lines()
 
 
 def _clip_lines(clip) -> list[str]:
@@ -125,9 +115,10 @@ def _clip_lines(clip) -> list[str]:
 
 
 # ----------------------------------------------------------------------------- result.json
-def base_report(video, clip, ode, spec, analysis, settings: Mapping[str, Any], n_train: int,
-                folder: Path, options: Mapping[str, Any] | None = None, t0: float = 0.0) -> dict[str, Any]:
-    """result.json before training (status "running"): input, equation, analysis, settings.
+def base_report(video, clip, ode, spec, analysis, plan, train_fraction: float, folder: Path,
+                options: Mapping[str, Any] | None = None, t0: float = 0.0) -> dict[str, Any]:
+    """result.json before training (status "running"): input, equation, analysis, the plan's
+    choices with their reasons, settings.
 
     options: the video flags as given (fps, start, end, roi, size, color, stride, mask, calibrate).
     t0: video time of the first frame used.
@@ -145,7 +136,7 @@ def base_report(video, clip, ode, spec, analysis, settings: Mapping[str, Any], n
             "name": Path(str(video)).name,
             "sha256": clip.sha256,
             "frames_used": n,
-            "frames_train": n_train,
+            "frames_train": plan.n_train,
             "frame_shape": [int(s) for s in clip.frames.shape[1:]],
             "fps": float(clip.fps),
             "fps_source": clip.fps_source,
@@ -174,9 +165,11 @@ def base_report(video, clip, ode, spec, analysis, settings: Mapping[str, Any], n
         "runs": [],
         "selected": [],
         "best": None,
-        "settings": _plain_settings(settings),
+        "plan": plan.to_dict(),
+        "settings": _plain_settings({**plan.config.as_dict(), "train_fraction": train_fraction}),
         "trajectory": None,
         "warnings": [],
+        "notes": [],
         "files": [],
     }
 
@@ -193,88 +186,40 @@ def _jsonable(v: Any) -> bool:
         return False
 
 
-def complete_report(report: dict[str, Any], result, analysis, calibration, t0: float = 0.0) -> None:
-    """Fill the estimates, runs and trajectory of a finished fit (and its calibration) into report."""
+def complete_report(report: dict[str, Any], result, analysis, t0: float = 0.0) -> None:
+    """Fill the estimates, runs, trajectory, calibration and the assessment's verdicts and warnings
+    of a finished fit into report. It only formats: every judgement is the assessment's."""
     units = report["equation"].get("units", {})
-    n_runs = len(result.runs)
-    failed = [r.index for r in result.runs if r.status != "ok"]
     params: dict[str, Any] = {}
-    warnings: list[str] = []
     for name, est in result.parameters.items():
-        value, std = est.value, est.std
-        conv = calibration.constants.get(name) if calibration is not None else None
-        if conv is not None and conv["converted"]:
-            value, std = conv["after"], conv["std_after"]
-        unit = est.unit or units.get(name)
-        entry = {"value": value, "std": std, "n_runs": est.n_runs, "unit": unit,
-                 "scale": scale_of(analysis, name), "measurable": measurable(analysis, name),
-                 "calibrated": bool(conv and conv["converted"]), "latent_units": False,
-                 "best_run_only": name in result.meta.get("own_units", ()), "warnings": [],
-                 **_verdict(result, name)}
-        if scale_dependent(analysis, name) and not entry["calibrated"]:
-            entry["latent_units"] = True
-            entry["warnings"].append("in latent units: it depends on the latent's arbitrary scale; "
-                                     "give --calibrate with known values of the state for physical units")
-        if not entry["measurable"]:
-            item = analysis["constants"].get(name, {})
-            comb = item.get("combination")
-            entry["warnings"].append("not measurable alone" + (f": the video fixes only {comb}" if comb else ""))
-        if scale_of(analysis, name) == "free-small-amplitude" and not entry["calibrated"] and not _gauge_scaled(result):
-            entry["warnings"].append("scale-free only for small amplitudes: with large swings the latent's "
-                                     "arbitrary scale biases it; calibrate the state to be sure")
-        if est.n_runs > 1 and abs(std) > SPREAD_WARN * abs(value):
-            rel = abs(std) / abs(value) if value else math.inf
-            entry["warnings"].append(f"restarts disagree: spread {_pct(rel)} of the value")
-        params[name] = entry
-        warnings += [f"{name}: {w}" for w in entry["warnings"]]
-    if failed:
-        warnings.append(f"{len(failed)} of {n_runs} restarts failed (runs {', '.join(str(i + 1) for i in failed)})")
-    dropped = [r.index for r in result.runs if r.status == "ok" and r.index not in result.selected]
-    if dropped:
-        warnings.append(f"{len(dropped)} of {n_runs} restarts ended with a loss more than "
-                        f"{result.selection_factor:g}x the best and were left out of the estimate "
-                        f"(runs {', '.join(str(i + 1) for i in dropped)})")
-        elsewhere = [r for r in result.runs if r.index in dropped and any(
-            abs(r.value(n) - e.value) > SPREAD_WARN * max(abs(e.value), 1e-12) for n, e in result.parameters.items())]
-        # a measured latent is the same for every restart: a restart left out fitted it worse
-        if elsewhere and not result.meta.get("geometric"):
-            ends = "; ".join(f"run {r.index + 1}: " + ", ".join(f"{n}={r.value(n):.4g}" for n in r.final)
-                             for r in elsewhere)
-            # measured on the paper's scale video: an overdamped fit (g1 ~ 14) reached a lower loss
-            # than the true basin, so the lowest loss alone does not settle which basin is right
-            warnings.append(f"restarts left out ended elsewhere ({ends}): the loss may prefer a wrong basin; "
-                            "compare latent.png and params.png, or rerun with more --restarts")
-    not_converged = [r.index for r in result.runs if r.status == "ok" and not r.converged]
-    if not_converged and len(not_converged) == len([r for r in result.runs if r.status == "ok"]):
-        warnings.append("no restart settled before --max-steps; the estimates may still be moving "
-                        "(see params.png; raise --max-steps)")
+        params[name] = {"value": est.value, "std": est.std, "n_runs": est.n_runs, "unit": est.unit or units.get(name),
+                        "scale": scale_of(analysis, name), "measurable": measurable(analysis, name),
+                        "calibrated": est.calibrated, "latent_value": est.latent_value,
+                        "latent_units": scale_dependent(analysis, name) and not est.calibrated
+                        and not result.meta.get("physical_units", False),
+                        "best_run_only": name in result.meta.get("own_units", ()), **_verdict(result, name)}
     report["parameters"] = params
     report["runs"] = [_run_entry(asdict(r), r.index in result.selected) for r in result.runs]
     report["selected"] = list(result.selected)
     report["best"] = int(result.best)
     report["checks"] = to_jsonable(result.checks)
     latent, rollout = result.latent, result.rollout
-    if calibration is not None:
-        latent, rollout = calibration.latent, calibration.rollout
+    if result.calibration is not None:
+        latent, rollout = result.calibration["latent"], result.calibration["rollout"]
     report["trajectory"] = {
         "time": [float(t) + t0 for t in result.time],
         "train_frames": int(result.train_frames),
         "states": list(result.states),
-        "units": "physical" if calibration is not None else "latent",
+        "units": "physical" if result.calibration is not None else "latent",
         "latent": to_jsonable(latent),
         "rollout": to_jsonable(rollout),
     }
-    report["calibration"] = calibration.to_dict() if calibration is not None else None
-    report["warnings"] = warnings + report.get("warnings", [])
+    report["calibration"] = ({k: v for k, v in result.calibration.items() if k not in ("latent", "rollout", "lines")}
+                             if result.calibration is not None else None)
+    report["warnings"] = list(result.warnings) + report.get("warnings", [])
+    report["notes"] = list(result.notes)
     report["status"] = "complete"
     report.pop("error", None)
-
-
-def _gauge_scaled(result) -> bool:
-    """True when the best run learned the scale between latent and state (fitode.eqparse.gauge),
-    so a large swing no longer biases an amplitude-dependent constant."""
-    gauge = result.runs[result.best].gauge if result.runs else {}
-    return any(abs(g.get("scale", 1.0) - 1.0) > 1e-9 for g in gauge.values())
 
 
 def _verdict(result, name: str) -> dict[str, str]:
@@ -352,9 +297,8 @@ def format_table(report: Mapping[str, Any]) -> str:
     if cal:
         out.append("calibration: " + "; ".join(f"{s} = {m['a']:.6g}*latent + {m['b']:.6g}"
                                                for s, m in cal["maps"].items()))
-    warnings = report.get("warnings") or []
-    for w in warnings:
-        out.append(f"warning: {w}")
+    out += [f"warning: {w}" for w in report.get("warnings") or []]
+    out += [f"note: {n}" for n in report.get("notes") or []]
     return "\n".join(out)
 
 

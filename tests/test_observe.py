@@ -145,7 +145,7 @@ def test_a_disc_sliding_to_rest_gives_its_rate_through_the_position_observation(
     # measured: k = 0.8055 for 0.8 (+0.7%), trusted; an exponential fitted to the centroids gives 0.822
     frames = _disc(_decay_path(k=0.8))
     res = fitode.fit(frames, 1 / 30, eq="x' = -k*(x - c)", progress=False)
-    assert res.meta["observation"] == "position"
+    assert res.meta["plan"]["observation"]["value"] == "position"
     assert abs(res.values["k"] / 0.8 - 1) < 0.03, res.values
     assert res.verdicts["k"]["verdict"] == "trusted", res.verdicts
 
@@ -193,10 +193,11 @@ def test_a_constant_that_changes_sign_with_the_state_is_compared_in_one_orientat
 def test_the_api_takes_the_equation_files_observation():
     frames = _frames("move").numpy()  # auto would not call this brightness
     res = fitode.fit(frames, 0.1, system="led_decay", restarts=1, max_steps=5, min_steps=5, progress=False)
-    assert res.meta["observation"] == "brightness" and "from the equation file" in res.meta["observation_reason"]
+    observation = res.meta["plan"]["observation"]
+    assert observation["value"] == "brightness" and "from the equation file" in observation["reason"]
     res = fitode.fit(frames, 0.1, system="led_decay", observe="any", restarts=1, max_steps=5, min_steps=5,
                      progress=False)
-    assert res.meta["observation"] == "any"
+    assert res.meta["plan"]["observation"]["value"] == "any"
 
 
 def _scaled_disc(radii, centres, h=48, w=64, seed=0) -> np.ndarray:
@@ -282,7 +283,7 @@ def test_a_fall_filmed_at_an_angle_is_trained_again_on_the_corrected_path():
     seen = m + (d - m) / (1 - 0.08 / np.abs(d - m).max() * (d - m))
     frames = _disc(np.stack([np.full(n, 16.0), seen], axis=1), h=100, w=32, r=3.0)
     res = fitode.fit(frames, dt, eq="d'' = g", free=["g"], progress=False)
-    assert res.meta["observation"] == "position" and res.checks["perspective"]["apply"]
+    assert res.meta["plan"]["observation"]["value"] == "position" and res.checks["perspective"]["apply"]
     assert "perspective" in res.meta["subspace"]
     slope = np.polyfit(res.latent[:, 0], d, 1)[0]
     assert abs(res.values["g"] * slope / g - 1) < 0.02, (res.values, slope)
@@ -316,18 +317,10 @@ def test_a_one_way_path_is_mended_where_its_centroid_strays_and_an_oscillation_i
 def test_restarts_that_read_one_measured_path_are_not_compared_in_their_own_units():
     from fitode.eqparse import analyse
     from fitode.train.observe import SizeObservation
-    from fitode.train.result import RunRecord
     from fitode.train.trainer import _own_units
-    from fitode.train.verdict import judge
     system = parse("h' = -k*sqrt(h)")
     analysis = analyse(system)
     assert _own_units(system, analysis, PositionObservation()) == {"k"}
     assert _own_units(system, analysis, SizeObservation()) == {"k"}
     assert _own_units(system, analysis, ObservationModel()) == set()  # a free encoder's restarts are compared
     assert _own_units(parse("x'' = -w*x"), analyse(parse("x'' = -w*x")), PositionObservation()) == set()
-    runs = [RunRecord(index=i, seed=i, init={}, final={"k": v}, loss=0.1, steps=1, status="ok", converged=True)
-            for i, v in enumerate([0.037, 0.064])]  # the same drain read at two scales
-    compared = judge(["k"], runs, [0, 1], {"k": 0.064}, [], calibrated=["k"])
-    assert compared["k"].verdict == "ambiguous" and "disagree" in compared["k"].reason
-    own = judge(["k"], runs, [0, 1], {"k": 0.064}, [], calibrated=["k"], own_units=["k"])
-    assert own["k"].verdict == "trusted" and "best restart's reading" in own["k"].reason

@@ -1,4 +1,4 @@
-"""fitode.pipeline.run_video: the folder it leaves in every outcome (complete, failed, interrupted)."""
+"""fitode.pipeline.run_job (run_video with flat options): the folder it leaves in every outcome (complete, failed, interrupted)."""
 from __future__ import annotations
 
 import json
@@ -14,7 +14,7 @@ import pytest
 
 from fitode.errors import FitodeError
 from fitode.examples.make_example import decay_values, render_glow, write_mp4
-from fitode.pipeline import RunOutcome, _make_out_dir, run_video
+from fitode.pipeline import RunOutcome, _make_out_dir, run_job
 
 EQ = "I' = -gamma*I"
 TINY = dict(restarts=2, max_steps=10, window=8, stride=1)
@@ -29,7 +29,7 @@ def video(tmp_path_factory) -> Path:
 def test_run_video_returns_the_outcome(video, tmp_path):
     lines: list[str] = []
     seen = []
-    out = run_video(video, tmp_path / "o", eq=EQ, log=lines.append, callback=seen.append, seed=1, **TINY)
+    out = run_job(video, tmp_path / "o", eq=EQ, log=lines.append, callback=seen.append, seed=1, **TINY)
     assert isinstance(out, RunOutcome) and out.out_dir == tmp_path / "o"
     assert out.report == json.loads((out.out_dir / "result.json").read_text())
     assert out.report["status"] == "complete" and out.warnings == out.report["warnings"]
@@ -50,7 +50,7 @@ def test_errors_come_before_any_folder(video, tmp_path):
                    dict(eq=EQ, bogus=3), dict(eq=EQ, prior=(0.0, -1.0)), dict(eq=EQ, train_fraction=0.0),
                    dict(eq=EQ, encoder="vit")):
         with pytest.raises(FitodeError) as e:
-            run_video(video, target, log=None, **{**TINY, **kwargs})
+            run_job(video, target, log=None, **{**TINY, **kwargs})
         assert "\n" not in str(e.value)
         assert not target.exists(), kwargs
 
@@ -65,7 +65,7 @@ def test_default_folders_are_unique(tmp_path, monkeypatch):
 def test_empty_out_dir_is_used(video, tmp_path):
     target = tmp_path / "empty"
     target.mkdir()
-    out = run_video(video, target, eq=EQ, log=None, **{**TINY, "restarts": 1, "max_steps": 3})
+    out = run_job(video, target, eq=EQ, log=None, **{**TINY, "restarts": 1, "max_steps": 3})
     assert (target / "result.json").is_file() and out.out_dir == target
 
 
@@ -75,7 +75,7 @@ def test_interrupt_leaves_an_incomplete_folder(video, tmp_path):
         if info.run == 1 and info.step == 4:
             raise KeyboardInterrupt
     with pytest.raises(KeyboardInterrupt):
-        run_video(video, tmp_path / "i", eq=EQ, log=None, callback=stop, **TINY)
+        run_job(video, tmp_path / "i", eq=EQ, log=None, callback=stop, **TINY)
     folder = tmp_path / "i"
     report = json.loads((folder / "result.json").read_text())
     assert report["status"] == "incomplete" and "interrupted" in report["error"]
@@ -96,7 +96,7 @@ def test_interrupt_before_any_estimate_keeps_the_history(video, tmp_path):
         if info.run == 0 and info.step == 3:
             raise KeyboardInterrupt
     with pytest.raises(KeyboardInterrupt):
-        run_video(video, tmp_path / "i", eq=EQ, log=None, callback=stop, **TINY)
+        run_job(video, tmp_path / "i", eq=EQ, log=None, callback=stop, **TINY)
     folder = tmp_path / "i"
     report = json.loads((folder / "result.json").read_text())
     assert report["status"] == "incomplete" and report["input"]["sha256"]
@@ -110,7 +110,7 @@ def test_interrupt_before_any_estimate_keeps_the_history(video, tmp_path):
 
 def test_every_run_failing_leaves_a_failed_folder(video, tmp_path):
     with pytest.raises(FitodeError, match="every run failed"):
-        run_video(video, tmp_path / "f", eq="I' = gamma*I^3", init={"gamma": 1e6}, log=None, **{**TINY, "restarts": 1})
+        run_job(video, tmp_path / "f", eq="I' = gamma*I^3", init={"gamma": 1e6}, log=None, **{**TINY, "restarts": 1})
     report = json.loads((tmp_path / "f" / "result.json").read_text())
     assert report["status"] == "failed" and "every run failed" in report["error"]
     assert report["parameters"] == {}
@@ -144,12 +144,12 @@ def test_real_ctrl_c(video, tmp_path):
 
 def test_times_are_video_times_after_start(video, tmp_path):
     """With --start 1, frame 0 is at t = 1 s: latent.png, result.json and --calibrate all use video time."""
-    out = run_video(video, tmp_path / "s", eq=EQ, start=1.0, calibrate="I(1)=1; I(3.5)=0.3", log=None,
+    out = run_job(video, tmp_path / "s", eq=EQ, start=1.0, calibrate="I(1)=1; I(3.5)=0.3", log=None,
                     **{**TINY, "restarts": 1, "max_steps": 3})
     traj = out.report["trajectory"]
     assert traj["time"][0] == pytest.approx(1.0) and out.report["input"]["first_frame_time_s"] == pytest.approx(1.0)
     from fitode.calibrate import local_value  # the points are read from a local quadratic of the latent
     assert local_value(np.array(traj["time"]), np.array(traj["latent"])[:, 0], 1.0) == pytest.approx(1.0, abs=1e-6)
     with pytest.raises(FitodeError, match="outside the clip"):
-        run_video(video, tmp_path / "s2", eq=EQ, start=1.0, calibrate="I(0.5)=1; I(3.5)=0.3", log=None, **TINY)
+        run_job(video, tmp_path / "s2", eq=EQ, start=1.0, calibrate="I(0.5)=1; I(3.5)=0.3", log=None, **TINY)
     assert not (tmp_path / "s2").exists()

@@ -238,8 +238,8 @@ def test_a_decay_gets_the_brightness_observation_and_a_one_way_mlp_fit_is_not_tr
                         mode="intensity", size=16, noise=0.01)
     # this rendering's pixels are linear in I (no camera curve): light="linear"
     auto = fitode.fit(v.frames, v.dt, eq="I' = -gamma*I", restarts=2, max_steps=600, light="linear", progress=False)
-    assert auto.settings["encoder"] == "linear" and auto.meta["observation"] == "brightness"
-    assert "auto" in auto.meta["observation_reason"]
+    assert auto.settings["encoder"] == "linear" and auto.meta["plan"]["observation"]["value"] == "brightness"
+    assert "auto" in auto.meta["plan"]["observation"]["reason"]
     assert auto.verdicts["gamma"]["verdict"] == "trusted", auto.verdicts
     assert abs(auto.values["gamma"] - 0.5) / 0.5 < 0.08, auto.values
     mlp = fitode.fit(v.frames, v.dt, eq="I' = -gamma*I", encoder="mlp", restarts=2, max_steps=200, progress=False)

@@ -24,7 +24,7 @@ from fitode.eqparse.gauge import StateGauge
 from fitode.errors import FitodeError, TrainingError
 
 from . import interrupts
-from .config import TrainConfig, resolve_encoder
+from .config import ENCODER_NAMES, TrainConfig
 from .gauge import LR_FACTOR, Gauge
 from .history import History
 from .loss import restart_losses
@@ -32,7 +32,6 @@ from .observe import ObservationModel
 from .optim import BatchedAdam
 from .result import RunRecord
 from .stopping import StopRule, horizon
-from .horizon import resolve_window
 from .windows import Windows, distinct_frames
 
 
@@ -69,8 +68,8 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
     """Train len(inits) restarts on prepared frames (T, C, H, W) already on the target device.
     targets: {restart: (T,) latent} whose encoder first learns that latent (see distill)."""
     t0 = time.perf_counter()
-    config, _ = resolve_encoder(config, system, observation)
-    config, _ = resolve_window(config, frames, dt)
+    if config.window is None or config.encoder not in ENCODER_NAMES:
+        raise ValueError("train_restarts takes a resolved config (fitode.train.plan.make_plan): a window and an encoder")
     n_runs = len(inits)
     device = frames.device
     windows = Windows(frames.shape[0], config.window)

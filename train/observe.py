@@ -59,6 +59,18 @@ class ObservationModel:
     # latent wrong.
     geometric = False
     perspective = False  # may the trainer re-read the latent through a camera's perspective (holds.perspective_check)?
+    physical_units = False  # the latent is the state in its own physical units (no scale or offset to learn)
+
+    @property
+    def measured(self) -> bool:
+        return self.geometric
+
+    def applies(self, check: str) -> bool:
+        """Whether a check that depends on what the latent is applies to this model: "score",
+        "quiet" and "rivals" judge a learned latent; "trajectory" a measured one; "perspective"
+        re-reads a measured path through a camera's perspective."""
+        return {"score": not self.measured, "quiet": not self.measured, "rivals": not self.measured,
+                "trajectory": self.measured, "perspective": self.perspective}[check]
 
     def __init__(self, subspace: bool = True):
         self.subspace = subspace
@@ -138,6 +150,11 @@ class BrightnessObservation(ObservationModel):
 
     name = "brightness"
     architecture = "linear"
+
+    def applies(self, check: str) -> bool:
+        # decoded light is measured too: where the latent slows, the light does (a decay near
+        # rest still changes many pixels a little), so it cannot follow only a transient
+        return check != "quiet" and super().applies(check)
 
     def __init__(self, light: str = "srgb", subspace: bool = True):
         super().__init__(subspace)

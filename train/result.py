@@ -15,10 +15,15 @@ from fitode.jsonio import to_jsonable, write_json
 
 @dataclass
 class Estimate:
+    """A constant's estimate: value and std (over the restarts it comes from) in physical units
+    where calibrated, else the latent's; latent_value: the value before calibration."""
+
     value: float
     std: float
     n_runs: int
     unit: str | None = None
+    calibrated: bool = False
+    latent_value: float | None = None
 
 
 @dataclass
@@ -89,6 +94,9 @@ class FitResult:
     meta: dict[str, Any] = field(default_factory=dict)
     verdicts: dict[str, dict[str, str]] = field(default_factory=dict)  # name -> {"verdict", "reason"}
     checks: dict[str, Any] = field(default_factory=dict)  # the numbers behind the verdicts
+    warnings: list[str] = field(default_factory=list)  # the assessment's findings that are no verdict's headline
+    notes: list[str] = field(default_factory=list)  # what happened to the restarts, no judgement
+    calibration: dict[str, Any] | None = None  # the calibration applied (fitode.calibrate), with its trajectories
 
     @property
     def values(self) -> dict[str, float]:
@@ -117,6 +125,9 @@ class FitResult:
             "meta": self.meta,
             "verdicts": self.verdicts,
             "checks": self.checks,
+            "warnings": self.warnings,
+            "notes": self.notes,
+            "calibration": self.calibration,
         }
         return to_jsonable(d)
 
@@ -143,6 +154,9 @@ class FitResult:
             meta=dict(d.get("meta", {})),
             verdicts=dict(d.get("verdicts", {})),
             checks=dict(d.get("checks", {})),
+            warnings=list(d.get("warnings", [])),
+            notes=list(d.get("notes", [])),
+            calibration=d.get("calibration"),
         )
 
     @classmethod

@@ -1,4 +1,4 @@
-"""fit_frames: starts for every restart, the batched training loop, selection and the FitResult.
+"""fit_frames: a plan's restarts, the batched training loop, selection, the checks and the FitResult.
 
 The parts live beside it: the options in config.py, the loop in loop.py, the stopping rule in
 stopping.py, the observation model (frames -> latent) in observe.py, the gauge in gauge.py, the
@@ -20,16 +20,16 @@ from fitode.eqparse.identify import sign_odd
 from fitode.errors import TrainingError
 
 from . import interrupts
-from .config import TrainConfig, resolve_encoder
+from .config import TrainConfig
 from .loop import Callback, StepInfo, Trained, encode_all, train_restarts
 from .holds import one_trajectory_check, perspective_check, trajectory_fit, whole_clip_check
-from .horizon import resolve_window
-from .observe import ObservationModel, resolve_observation
+from .observe import ObservationModel
+from .plan import FitPlan
 from .result import Estimate, FitResult, RunRecord
 from .score import dominant_period, separation_score
-from .selection import select_runs
+from .selection import select_runs, selection
 from .starts import CANDIDATES, data_starts
-from .verdict import Finding, judge, video_checks
+from .verdict import Finding, video_checks
 
 DATA_STARTS = 2  # restarts that start from the data search (fitode.train.starts), when there are enough
 SCORE_EXCLUDE = 2  # frames either side left out of the score's neighbours (see fitode.train.score)
@@ -68,27 +68,22 @@ def restart_inits(system: OdeSystem, params: Mapping[str, ParamSpec], n: int, se
     return inits
 
 
-def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mapping[str, ParamSpec],
-               config: TrainConfig, *, train_frames: int | None = None, init: Mapping[str, float] | None = None,
-               callback: Callback | None = None, progress: bool = False,
-               observe: str | ObservationModel | None = None, meta: dict | None = None) -> FitResult:
-    """Every restart on raw float frames (T, C, H, W); training uses the first train_frames."""
-    observation = resolve_observation(observe, system, frames, config.light, config.encoder)
-    config, encoder_reason = resolve_encoder(config, system, observation)
+def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None = None,
+               progress: bool = False) -> FitResult:
+    """Every restart of the plan on raw float frames (T, C, H, W), trained on the first
+    plan.n_train; the estimates and the measurement's checks (result.checks, with their findings).
+    The verdicts are the assessment's (fitode.train.assess), made after any calibration."""
+    system, params, config, observation, dt = plan.system, plan.params, plan.config, plan.observation, plan.dt
+    n_total, n_train = plan.n_frames, plan.n_train
+    if frames.shape[0] != n_total:
+        raise TrainingError(f"the plan is for {n_total} frames, got {frames.shape[0]}")
     device = torch.device(config.device)
-    n_total = frames.shape[0]
-    n_train = n_total if train_frames is None else int(train_frames)
-    config, window_reason = resolve_window(config, frames[:n_train], dt)
-    if n_train < config.window + 1:
-        raise TrainingError(f"{n_train} training frames are fewer than one window of {config.window} plus one; "
-                            "use a longer clip, a smaller --stride or a shorter window")
     prepared = observation.prepare(frames.to(device), config.encoder, fit_frames=n_train)
-    plan = gauge_plan(system)
+    gauges = gauge_plan(system)
     coefs = prepared.components[:n_train]  # the training frames' leading principal components
-    fit = _train_pass(prepared.inputs, n_train, dt, system, params, config, init, observation, plan, coefs,
-                      callback, progress)
+    fit = _train_pass(prepared.inputs, plan, gauges, coefs, callback, progress)
     perspective = straight = None  # straight: one trajectory over the best run's state, for both checks
-    if observation.perspective and not fit.interrupted:
+    if observation.applies("perspective") and not fit.interrupted:
         straight = trajectory_fit(system, params, fit.states[fit.best, :n_train], dt, fit.records[fit.best].final,
                                   config)
         perspective = perspective_check(system, params, fit.states[fit.best, :n_train], dt,
@@ -98,12 +93,10 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
             perspective["apply"] = reread is not None
             if reread is not None:
                 prepared, straight = reread, None
-                fit = _train_pass(prepared.inputs, n_train, dt, system, params, config, init, observation, plan,
-                                  coefs, callback, progress)
+                fit = _train_pass(prepared.inputs, plan, gauges, coefs, callback, progress)
     records, latents, rollouts, states = fit.records, fit.latents, fit.rollouts, fit.states
     best, selected, interrupted = fit.best, fit.selected, fit.interrupted
-    analysis = analyse(system)
-    own_units = _own_units(system, analysis, observation)
+    own_units = _own_units(system, analyse(system), observation)
     estimates = {}
     for name in system.learnable:
         # restarts that read one measured path each read it in units of their own: a constant that
@@ -114,10 +107,10 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
     findings, numbers = video_checks(latents[best, :n_train], rollouts[best, :n_train], coefs, dt,
                                      records[best].score, oscillator=system.max_order >= 2,
                                      encoder=config.encoder, rank=prepared.rank, miss=records[best].miss,
-                                     observation=observation.name, geometric=observation.geometric)
+                                     observation=observation)
     if prepared.caution:
         findings.append(Finding("ambiguous", prepared.caution))
-    if observation.geometric and not interrupted:
+    if observation.applies("trajectory") and not interrupted:
         holds, numbers["whole_clip"] = whole_clip_check(system, params, states[best, :n_train], dt,
                                                         records[best].final, config)
         if holds is not None:
@@ -127,28 +120,24 @@ def fit_frames(frames: torch.Tensor, dt: float, system: OdeSystem, params: Mappi
         findings.extend(slow)
     if perspective is not None:
         numbers["perspective"] = perspective
-    verdicts = judge(system.learnable, records, selected, {n: e.value for n, e in estimates.items()}, findings,
-                     analysis=analysis, own_units=own_units)
     return FitResult(
         parameters=estimates, runs=records, selected=selected, best=best,
         latent=latents[best], rollout=rollouts[best], time=np.arange(n_total) * dt, train_frames=n_train, dt=dt,
         states=list(system.states), equation=system.text, fixed=dict(system.fixed),
         settings=config.as_dict(), selection_factor=config.selection_factor,
-        meta={**(meta or {}), "interrupted": interrupted, "observation": observation.name,
-              "geometric": observation.geometric,
-              "observation_reason": observation.reason,
-              "subspace": prepared.note, "rank": prepared.rank, "encoder": encoder_reason, "window": window_reason,
-              "gauge": {s: g.describe() for s, g in plan.items()}, "own_units": sorted(own_units)},
-        verdicts={n: v.to_dict() for n, v in verdicts.items()},
+        meta={"interrupted": interrupted, "plan": plan.to_dict(),
+              "measured": observation.measured, "physical_units": observation.physical_units, "subspace": prepared.note, "rank": prepared.rank,
+              "gauge": {s: g.describe() for s, g in gauges.items()}, "own_units": sorted(own_units),
+              "left_out": fit.left_out},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},
     )
 
 
 def _own_units(system: OdeSystem, analysis, observation: ObservationModel) -> set[str]:
-    """The constants whose restarts are not comparable: with a measured latent (a geometric
+    """The constants whose restarts are not comparable: with a measured latent (a measured
     observation) every restart reads the same path, scaled and shifted in its own way, and a
     constant whose value depends on the latent's scale differs between them by that alone."""
-    if not observation.geometric:
+    if not observation.measured or observation.physical_units:
         return set()
     return {n for n in system.learnable if analysis[n].scale == "dependent"}
 
@@ -164,13 +153,15 @@ class _Pass:
     selected: list[int]
     best: int
     interrupted: bool
+    left_out: dict[int, str]  # run index -> why it was left out of the estimate (fitode.train.selection)
 
 
-def _train_pass(frames: torch.Tensor, n_train: int, dt: float, system: OdeSystem, params: Mapping[str, ParamSpec],
-                config: TrainConfig, init: Mapping[str, float] | None, observation: ObservationModel, plan,
-                coefs: np.ndarray, callback: Callback | None, progress: bool) -> _Pass:
-    """Every restart trained on the encoder's inputs `frames` (their first n_train), each run's
+def _train_pass(frames: torch.Tensor, plan: FitPlan, gauges, coefs: np.ndarray, callback: Callback | None,
+                progress: bool) -> _Pass:
+    """Every restart trained on the encoder's inputs `frames` (their first plan.n_train), each run's
     latent, rollout and state on every frame, and the runs selected for the estimate."""
+    system, params, config, observation, dt = plan.system, plan.params, plan.config, plan.observation, plan.dt
+    n_train, init = plan.n_train, plan.init
     inits = restart_inits(system, params, config.restarts, config.seed, init)
     origins = ["user" if init else "equation file"] + ["spread"] * (len(inits) - 1)
     seeds = [config.seed * 1000 + i for i in range(len(inits))]
@@ -180,11 +171,11 @@ def _train_pass(frames: torch.Tensor, n_train: int, dt: float, system: OdeSystem
         if n_data:
             candidates = restart_inits(system, params, CANDIDATES, config.seed + 1, None)[1:] + inits[:1]
             period = dominant_period(coefs, dt) if system.max_order >= 2 else None
-            found = data_starts(coefs, dt, system, params, config, plan, candidates, n_data, period=period)
+            found = data_starts(coefs, dt, system, params, config, gauges, candidates, n_data, period=period)
             for i, start in enumerate(found, start=1):
                 inits[i], origins[i], targets[i] = start.constants, "data", start.latent
         trained = train_restarts(frames[:n_train], dt, system, params, config, inits, seeds=seeds,
-                                 observation=observation, plan=plan, callback=callback, progress=progress,
+                                 observation=observation, plan=gauges, callback=callback, progress=progress,
                                  targets=targets)
         latents, rollouts, states = _trajectories(trained, frames, dt)
         late = interrupts.pending()  # a signal after the last step: the fit finished, but the user asked to stop
@@ -193,14 +184,14 @@ def _train_pass(frames: torch.Tensor, n_train: int, dt: float, system: OdeSystem
         rec.origin = origin
     for r in records:
         if r.status != "failed":
-            if not observation.geometric:
+            if observation.applies("score"):
                 r.score = separation_score(latents[r.index, :n_train], coefs, exclude=SCORE_EXCLUDE)
             var = float(np.var(latents[r.index, :n_train], axis=0).sum())
             r.miss = r.history.mse[-1] / var if r.history.mse and var > 0 else None
     interrupted = late or any(r.status == "interrupted" for r in records)
-    selected = select_runs(records, config.selection_factor)
+    selected, left_out = selection(records, config.selection_factor)
     if not selected and interrupted:
-        selected = select_runs(records, config.selection_factor, statuses=("ok", "interrupted"))
+        selected, left_out = selection(records, config.selection_factor, statuses=("ok", "interrupted"))
         if not selected:
             raise KeyboardInterrupt
     if not selected:
@@ -208,7 +199,7 @@ def _train_pass(frames: torch.Tensor, n_train: int, dt: float, system: OdeSystem
         raise TrainingError(f"every run failed ({errors})")
     best = min(selected, key=lambda i: records[i].loss)
     _align(records, latents[:, :n_train], best, sign_odd(system))
-    return _Pass(records, latents, rollouts, states, selected, best, interrupted)
+    return _Pass(records, latents, rollouts, states, selected, best, interrupted, left_out)
 
 
 def _align(records: list[RunRecord], latents: np.ndarray, best: int, odd: set[str]) -> None:

@@ -24,14 +24,10 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from .score import dominant_period
-from .selection import SCORE_MARGIN
 
 LEVELS = ("trusted", "ambiguous", "not trustworthy")
 SCORE_MIN = 0.5  # right latents scored 0.78-0.995 on every motion case tried, wrong ones -0.5 to 0.45
 PERIOD_TOL = 0.1
-AGREE_TOL = 0.05
-SETTLED = 0.005  # a constant that moved less than this (relative) over the last MOTION_STEPS steps has settled
-MOTION_STEPS = 200
 MISS_MAX = 0.05  # window prediction error over the latent's variance: right fits measured 1e-5 to 1e-3
 RIVAL_MISS = 10.0  # a restart that scores alike is a rival only if it fits the latent about as well
 # (its window error over the latent's variance within this factor: the loss would mix in the KL term,
@@ -73,15 +69,16 @@ class Verdict:
 
 def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt: float, score: float | None,
                  oscillator: bool, encoder: str = "mlp", rank: int = 0,
-                 miss: float | None = None, observation: str = "any",
-                 geometric: bool = False) -> tuple[list[Finding], dict[str, float | None]]:
+                 miss: float | None = None, observation=None) -> tuple[list[Finding], dict[str, float | None]]:
     """Findings that hold for every constant, from the best run's latent and rollout (training
     frames only), the frames' principal components, the encoder's architecture and the rank of
     the signal subspace it read, and the best run's window miss (RunRecord.miss); and the numbers
-    behind them. geometric: the latent is a measured position or size read linearly (no score)."""
+    behind them. observation: the model that read the frames (None: the paper's free encoder);
+    it says which of the checks that depend on what the latent is apply (its `applies`)."""
+    applies = observation.applies if observation is not None else (lambda check: check in ("score", "quiet"))
     findings: list[Finding] = []
     numbers: dict[str, float | None] = {"score": score}
-    if not geometric and (score is None or not math.isfinite(score) or score < SCORE_MIN):
+    if applies("score") and (score is None or not math.isfinite(score) or score < SCORE_MIN):
         shown = "nan" if score is None or not math.isfinite(score) else f"{score:.2f}"
         findings.append(Finding("not trustworthy", f"no restart's latent tells the frames apart (best score {shown}; "
                                 "a latent that follows what the video shows scores above "
@@ -117,7 +114,7 @@ def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt:
                                 f"but the frames every {t_frames:.3g} s"))
     # a measured latent (a centroid, decoded light) cannot follow only a transient: where it
     # slows, the object or the light does (a decay near rest, which still changes many pixels)
-    quiet = _quiet_quarter(latent, coefs, dt) if observation == "any" else None
+    quiet = _quiet_quarter(latent, coefs, dt) if applies("quiet") else None
     if quiet is not None:
         findings.append(Finding("not trustworthy", quiet))
     return findings, numbers
@@ -154,79 +151,3 @@ def _quiet_quarter(latent: np.ndarray, coefs: np.ndarray, dt: float) -> str | No
             return (f"the latent stops moving after {q * n // 4 * dt:.3g} s while the frames still change: "
                     "it follows only a start-up transient")
     return None
-
-
-def _motion(run, name: str) -> float | None:
-    """Relative change of a constant over the last MOTION_STEPS steps of a run's history."""
-    series = run.history.constants.get(name, [])
-    if len(series) < 2:
-        return None
-    now, then = series[-1], series[-1 - min(MOTION_STEPS, len(series) - 1)]  # a short run: since its start
-    return abs(now - then) / max(abs(now), 1e-12)
-
-
-def judge(names: Iterable[str], runs, selected: list[int], estimates: Mapping[str, float],
-          findings: list[Finding], analysis=None, calibrated: Iterable[str] = (),
-          own_units: Iterable[str] = ()) -> dict[str, Verdict]:
-    """The verdict per constant. runs: RunRecords with .index, .status, .final, .loss, .score,
-    .converged; analysis: the equation's IdentifiabilityReport (None: not judged on it);
-    own_units: constants whose restarts read one measured path in units of their own, so their
-    values are the best run's and are not compared between restarts."""
-    calibrated, own_units = set(calibrated), set(own_units)
-    by_index = {r.index: r for r in runs}
-    sel = [by_index[i] for i in selected]
-    scores = [r.score for r in sel if r.score is not None and math.isfinite(r.score)]
-    best_score = max(scores) if scores else None
-    out = {}
-    for name in names:
-        value = estimates[name]
-        found: list[Finding] = [f for f in findings if f.names is None or name in f.names]
-        if analysis is not None:
-            c = analysis[name]
-            if not c.separable:
-                what = f"only {c.combination}" if c.combination else "no value for it alone"
-                found.append(Finding("not trustworthy", f"the equation lets a video measure {what}"))
-            elif c.scale == "dependent" and name not in calibrated:
-                found.append(Finding("not trustworthy", "its value depends on the latent's arbitrary units; "
-                                     "give --calibrate with known values of the state"))
-        vals = [r.value(name) for r in sel if name in r.final]
-        if len(vals) > 1 and name not in own_units and np.std(vals) > AGREE_TOL * max(abs(value), 1e-12):
-            found.append(Finding("ambiguous", "the selected restarts disagree: "
-                                 + ", ".join(f"{v:.4g}" for v in vals)))
-        misses = [r.miss for r in sel if r.miss is not None]
-        best_miss = min(misses) if misses else math.inf
-        # a measured latent (no scores) is the same line for every restart, so the loss compares
-        # them directly: the restarts left out fit it worse, and none is a rival
-        rivals = [r for r in runs if r.index not in selected and r.status == "ok" and name in r.final
-                  and best_score is not None and r.score is not None and r.score >= best_score - SCORE_MARGIN
-                  and (r.miss is None or r.miss <= RIVAL_MISS * best_miss)
-                  and abs(r.value(name) - value) > AGREE_TOL * max(abs(value), 1e-12)]
-        if rivals:
-            found.append(Finding("ambiguous", "restarts that tell the frames apart as well ended elsewhere: "
-                                 + "; ".join(f"run {r.index + 1} at {r.value(name):.4g} (score {r.score:.2f}, "
-                                             f"loss {r.loss:.3g})" for r in rivals)))
-        moving = [m for m in (_motion(r, name) for r in sel if not r.converged) if m is not None]
-        if moving and min(moving) > SETTLED:
-            found.append(Finding("ambiguous", f"still moving at the step limit ({100 * min(moving):.2g}% over the "
-                                 f"last {MOTION_STEPS} steps); raise --max-steps"))
-        found.sort(key=lambda f: -LEVELS.index(f.level))  # stable: the checks' own order within a level
-        worst = found[0] if found else None
-        if worst is None:
-            agree = f"{len(sel)} restart{'s' if len(sel) != 1 else ''} agree" if len(sel) > 1 else "one restart"
-            if name in own_units:
-                agree = "the best restart's reading"
-            why = (f"the latent tells the frames apart (score {best_score:.2f})" if best_score is not None
-                   else "the latent is a measured position or size, read linearly")
-            out[name] = Verdict("trusted", f"{agree}; {why}")
-        else:
-            more = f" (and {len(found) - 1} more reason{'s' if len(found) > 2 else ''})" if len(found) > 1 else ""
-            out[name] = Verdict(worst.level, worst.reason + more, tuple(f.reason for f in found[1:]))
-    return out
-
-
-def rejudge(result, analysis=None, calibrated: Iterable[str] = (), extra: Iterable[Finding] = ()) -> dict[str, Verdict]:
-    """The verdicts of a FitResult again, after calibration (which can make a unit-dependent
-    constant physical, or show a calibrated value outside the equation's bounds)."""
-    findings = [Finding.from_dict(f) for f in result.checks.get("findings", [])] + list(extra)
-    return judge(list(result.parameters), result.runs, result.selected, result.values, findings,
-                 analysis=analysis, calibrated=calibrated, own_units=result.meta.get("own_units", ()))

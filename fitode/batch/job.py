@@ -18,12 +18,12 @@ from typing import Any, Callable
 
 from .manifest import Job
 
-DEFAULT_RUNNER = "fitode.pipeline:run_video"
+DEFAULT_RUNNER = "fitode.pipeline:run_job"
 
 
 @dataclass
 class Task:
-    """A job and where it writes. runner: "module:function" with run_video's signature (tests swap it)."""
+    """A job and where it writes. runner: "module:function" with run_job's signature (tests swap it)."""
 
     job: Job
     out_dir: Path
@@ -72,7 +72,7 @@ def single_thread() -> None:
 
 def load_runner(spec: str) -> Callable[..., Any]:
     module, _, name = spec.partition(":")
-    return getattr(importlib.import_module(module), name or "run_video")
+    return getattr(importlib.import_module(module), name or "run_job")
 
 
 def execute_job(task: Task) -> JobOutcome:
@@ -88,8 +88,8 @@ def execute_job(task: Task) -> JobOutcome:
         # attempt left there goes, since the pipeline refuses to write into a non-empty folder
         if Path(task.out_dir).exists():
             shutil.rmtree(task.out_dir)
-        run_video = load_runner(task.runner)
-        outcome = run_video(job.video, task.out_dir, progress=False, log=None, **job.kwargs)
+        run = load_runner(task.runner)
+        outcome = run(job.video, task.out_dir, progress=False, log=None, **job.kwargs)
         report = getattr(outcome, "report", None)
         if report is None:
             report = read_report(Path(task.out_dir))

@@ -73,7 +73,7 @@ class Job:
     """One video to fit: everything a worker needs, and nothing that lives only in the driver.
 
     index: 1-based position among the manifest's jobs. name: the job's folder under the batch's
-    out dir. kwargs: the keyword arguments of `fitode.pipeline.run_video` (besides video and
+    out dir. kwargs: the keyword arguments of `fitode.pipeline.run_job` (besides video and
     out_dir). fingerprint: what the settings hash covers (the kwargs, the video's path relative to
     the manifest, its size and mtime, an equation file's text). truth: known true constants.
     """

@@ -67,7 +67,7 @@ def run_batch(manifest: str | Path | Manifest, out: str | Path | None = None, *,
         at `address`, or a private local instance), or an Executor object.
     force: run every job again. retry_failed: run jobs that failed before with the same settings
         (the default; False keeps them failed). defaults: values for keys the manifest leaves unset.
-    runner: "module:function" called as run_video(video, out_dir, progress=False, log=None, **kwargs).
+    runner: "module:function" called as run_job(video, out_dir, progress=False, log=None, **kwargs).
     dry_run: plan and report, run nothing, write nothing.
     """
     t0 = time.perf_counter()

@@ -1,0 +1,205 @@
+"""The assessment: every verdict decided in one place, once, after any calibration.
+
+Training and the measurement's checks leave findings in result.checks (fitode.train.verdict's
+video checks, the trajectory checks of a measured path). Here they meet what can only be
+judged with the whole run in view, each rule with one threshold:
+- what the equation lets a video measure (fitode.eqparse.identify): a constant that enters only
+  through a combination is not trustworthy; one whose value depends on the latent's units is
+  not trustworthy until calibrated, unless the observation measures the state in its own units;
+- agreement: the restarts an estimate comes from must agree within AGREE_TOL;
+- rivals: a restart left out that tells the frames apart as well (score within SCORE_MARGIN) and
+  fits its latent about as well (RIVAL_MISS) but ended elsewhere makes the estimate ambiguous;
+- settling: an estimate whose restarts all stopped at the step limit is ambiguous, and says how
+  far it still moved over its last MOTION_STEPS steps;
+- an interrupted run is ambiguous: its estimates come from unfinished training.
+The worst finding decides: any "not trustworthy" beats "ambiguous", which beats "trusted". Every
+finding's reason is shown once: as a verdict's reason, or among the warnings. The warnings say
+nothing else that could make a number unreliable; notes (restarts left out, failed) say what
+happened and why, naming the rule that applied.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from .selection import SCORE_MARGIN
+from .verdict import LEVELS, RIVAL_MISS, Finding, Verdict
+
+AGREE_TOL = 0.05
+MOTION_STEPS = 200
+
+
+@dataclass
+class Assessment:
+    """The verdict per constant, every finding behind them, and the lines shown under the table:
+    warnings (findings that are no verdict's headline) and notes (what happened, no judgement)."""
+
+    verdicts: dict[str, Verdict]
+    findings: list[Finding]
+    warnings: list[str]
+    notes: list[str]
+
+    def apply(self, result) -> None:
+        """Record the assessment on its FitResult: verdicts, warnings, notes, and every finding
+        under checks["assessed"] (checks["findings"] stay the measurement's, so that a result can
+        be assessed again, after a calibration, from what training found)."""
+        result.verdicts = {n: v.to_dict() for n, v in self.verdicts.items()}
+        result.warnings, result.notes = list(self.warnings), list(self.notes)
+        result.checks = {**result.checks, "assessed": [f.to_dict() for f in self.findings]}
+
+
+def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iterable[Finding] = (),
+           physical_units: bool = False) -> Assessment:
+    """The assessment of a FitResult. analysis: the equation's IdentifiabilityReport (None: not
+    judged on it); calibrated: the constants a calibration put in physical units; extra: the
+    calibration's findings; physical_units: the observation measures the state in its own units."""
+    calibrated = set(calibrated)
+    measured = list(_measurement_findings(result)) + list(extra)
+    interrupted = bool(result.meta.get("interrupted"))
+    if interrupted:
+        measured.append(Finding("ambiguous", "training was interrupted (Ctrl-C): the estimates come from "
+                                "unfinished training"))
+    runs = {r.index: r for r in result.runs}
+    selected = [runs[i] for i in result.selected]
+    scores = [r.score for r in selected if r.score is not None and math.isfinite(r.score)]
+    best_score = max(scores) if scores else None
+    own_units = set(result.meta.get("own_units", ()))
+    verdicts: dict[str, Verdict] = {}
+    everything: list[Finding] = list(measured)
+    for name in result.parameters:
+        value = result.parameters[name].value
+        sources = [runs[result.best]] if name in own_units else selected
+        found = [f for f in measured if f.names is None or name in f.names]
+        mine = _identifiability(name, analysis, calibrated, physical_units, result)
+        mine += _agreement(name, value, sources)
+        mine += _rivals(name, value, result, best_score)
+        if not interrupted:
+            mine += _settling(name, sources, int(result.settings.get("max_steps", 0)))
+        everything += mine
+        found += mine
+        found.sort(key=lambda f: -LEVELS.index(f.level))  # stable: the checks' own order within a level
+        verdicts[name] = _verdict(found, sources, best_score, name in own_units)
+    return Assessment(verdicts, everything, _warnings(everything, verdicts), _notes(result))
+
+
+def _measurement_findings(result) -> Iterable[Finding]:
+    return (Finding.from_dict(f) for f in result.checks.get("findings", []))
+
+
+def _identifiability(name: str, analysis, calibrated: set[str], physical_units: bool, result) -> list[Finding]:
+    if analysis is None:
+        return []
+    c = analysis[name]
+    if not c.separable:
+        what = f"only {c.combination}" if c.combination else "no value for it alone"
+        return [Finding("not trustworthy", f"the equation lets a video measure {what}", (name,))]
+    if name in calibrated or physical_units:
+        return []
+    if c.scale == "dependent":
+        return [Finding("not trustworthy", "its value depends on the latent's arbitrary units; give --calibrate "
+                        "with known values of the state", (name,))]
+    if c.scale == "free-small-amplitude" and not _gauge_scaled(result):
+        return [Finding("ambiguous", "scale-free only for small amplitudes: with large swings the latent's "
+                        "arbitrary scale biases it; calibrate the state to be sure", (name,))]
+    return []
+
+
+def _agreement(name: str, value: float, sources) -> list[Finding]:
+    vals = [r.value(name) for r in sources if name in r.final]
+    if len(vals) > 1 and np.std(vals) > AGREE_TOL * max(abs(value), 1e-12):
+        return [Finding("ambiguous", f"the restarts it comes from disagree by more than {AGREE_TOL:.0%}: "
+                        + ", ".join(f"{v:.4g}" for v in vals), (name,))]
+    return []
+
+
+def _rivals(name: str, value: float, result, best_score: float | None) -> list[Finding]:
+    """Restarts left out that tell the frames apart as well and fit their latent about as well
+    (only where restarts are scored: a measured latent is the same line for every restart, so
+    the loss compares them directly and the ones left out fit it worse)."""
+    if best_score is None:
+        return []
+    sel = [r for r in result.runs if r.index in result.selected]
+    misses = [r.miss for r in sel if r.miss is not None]
+    best_miss = min(misses) if misses else math.inf
+    rivals = [r for r in result.runs if r.index not in result.selected and r.status == "ok" and name in r.final
+              and r.score is not None and r.score >= best_score - SCORE_MARGIN
+              and (r.miss is None or r.miss <= RIVAL_MISS * best_miss)
+              and abs(r.value(name) - value) > AGREE_TOL * max(abs(value), 1e-12)]
+    if not rivals:
+        return []
+    return [Finding("ambiguous", "restarts that tell the frames apart as well ended elsewhere: "
+                    + "; ".join(f"run {r.index + 1} at {_shown(r, name)} (score {r.score:.2f}, loss {r.loss:.3g})"
+                                for r in rivals), (name,))]
+
+
+def _shown(run, name: str) -> str:
+    """A run's value as the run table prints it, and as compared where its latent runs the other way."""
+    final, aligned = run.final[name], run.value(name)
+    return f"{final:.4g}" if aligned == final else f"{final:.4g} ({aligned:.4g} with its latent turned round)"
+
+
+def _settling(name: str, sources, max_steps: int) -> list[Finding]:
+    """No restart the estimate comes from settled: it stopped at the step limit, still moving."""
+    if not sources or any(r.converged for r in sources):
+        return []
+    moved = [m for m in (_motion(r, name) for r in sources) if m is not None]
+    how = f"; it moved {100 * min(moved):.2g}% over the last {MOTION_STEPS} steps" if moved else ""
+    return [Finding("ambiguous", f"no restart it comes from settled before the step limit ({max_steps} steps){how}; "
+                    "raise --max-steps", (name,))]
+
+
+def _motion(run, name: str) -> float | None:
+    """Relative change of a constant over the last MOTION_STEPS steps of a run's history."""
+    series = run.history.constants.get(name, [])
+    if len(series) < 2:
+        return None
+    now, then = series[-1], series[-1 - min(MOTION_STEPS, len(series) - 1)]  # a short run: since its start
+    return abs(now - then) / max(abs(now), 1e-12)
+
+
+def _gauge_scaled(result) -> bool:
+    """True when the best run learned the scale between latent and state (fitode.eqparse.gauge),
+    so a large swing no longer biases an amplitude-dependent constant."""
+    gauge = next((r.gauge for r in result.runs if r.index == result.best), {})
+    return any(abs(g.get("scale", 1.0) - 1.0) > 1e-9 for g in gauge.values())
+
+
+def _verdict(found: list[Finding], sources, best_score: float | None, own_units: bool) -> Verdict:
+    if found:
+        more = f" (and {len(found) - 1} more reason{'s' if len(found) > 2 else ''})" if len(found) > 1 else ""
+        return Verdict(found[0].level, found[0].reason + more, tuple(f.reason for f in found[1:]))
+    agree = f"{len(sources)} restarts agree" if len(sources) > 1 else "one restart"
+    if own_units:
+        agree = "the best restart's reading"
+    why = (f"the latent tells the frames apart (score {best_score:.2f})" if best_score is not None
+           else "the latent is a measured quantity, read linearly")
+    return Verdict("trusted", f"{agree}; {why}")
+
+
+def _warnings(findings: list[Finding], verdicts: Mapping[str, Verdict]) -> list[str]:
+    """Every finding not already a verdict's headline reason, once."""
+    shown = {v.reason.split(" (and ")[0] for v in verdicts.values()}
+    out: list[str] = []
+    for f in findings:
+        names = [n for n in (f.names or verdicts) if n in verdicts]
+        line = (f"{', '.join(names)}: " if f.names is not None else "") + f.reason
+        if f.reason not in shown and line not in out and f.level != "trusted":
+            out.append(line)
+    return out
+
+
+def _notes(result) -> list[str]:
+    n_runs = len(result.runs)
+    failed = [r.index for r in result.runs if r.status == "failed"]
+    out = []
+    if failed:
+        out.append(f"{len(failed)} of {n_runs} restarts failed (runs {', '.join(str(i + 1) for i in failed)})")
+    left = {int(i): why for i, why in result.meta.get("left_out", {}).items() if int(i) not in failed}
+    if left:
+        out.append(f"{len(left)} of {n_runs} restarts left out of the estimate: "
+                   + "; ".join(f"run {i + 1}, {why}" for i, why in sorted(left.items())))
+    return out
+
