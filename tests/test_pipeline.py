@@ -85,7 +85,9 @@ def test_interrupt_leaves_an_incomplete_folder(video, tmp_path):
     # the estimate is there, flagged as coming from unfinished training
     finals = [r["final"]["gamma"] for r in report["runs"]]
     assert min(finals) - 1e-9 <= report["parameters"]["gamma"]["value"] <= max(finals) + 1e-9
-    assert any("interrupted" in w for w in report["warnings"])
+    # and never trusted: the interruption is its verdict's reason
+    gamma = report["parameters"]["gamma"]
+    assert gamma["verdict"] == "ambiguous" and "interrupted" in gamma["verdict_reason"]
     from fitode.train.result import FitResult
     assert len(FitResult.load(folder / "fit.json").runs[1].history.loss) == 10
     assert {"frames.png", "params.png", "loss.png", "latent.png"} <= {p.name for p in folder.iterdir()}
