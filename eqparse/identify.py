@@ -41,6 +41,7 @@ import math
 import re
 import warnings
 from dataclasses import dataclass
+from typing import Iterable
 
 import numpy as np
 import sympy
@@ -215,20 +216,23 @@ def power_symmetric(system: OdeSystem) -> bool:
     return rhs.has(x) and sympy.diff(rhs, x, 2) == 0 and any(c.name in system.learnable for c in rhs.free_symbols)
 
 
-def sign_odd(system: OdeSystem) -> set[str]:
-    """The learnable constants that change sign when every state does: the equations hold for
-    (-x, -c) whenever they hold for (x, c), as g in d'' = g. Two restarts whose latents point
-    opposite ways report such a constant with opposite signs; it is one value."""
+def sign_odd(system: OdeSystem, states: Iterable[str] | None = None) -> set[str]:
+    """The learnable constants that change sign when every state does (or only `states`): the
+    equations hold for (-x, -c) whenever they hold for (x, c), as g in d'' = g. Two restarts whose
+    latents point opposite ways report such a constant with opposite signs; it is one value."""
+    turned = set(system.states if states is None else states)
     flip = {}
     for s, order in system.orders.items():
-        for k in range(order):
-            flip[deriv_symbol(s, k)] = -deriv_symbol(s, k)
+        if s in turned:
+            for k in range(order):
+                flip[deriv_symbol(s, k)] = -deriv_symbol(s, k)
     odd = set()
     for name in system.learnable:
         c = sympy.Symbol(name)
         flipped = {**flip, c: -c}
-        if all(sympy.simplify(rhs.xreplace(flipped) + rhs) == 0 for rhs in system.rhs.values()) and \
-                any(rhs.has(c) for rhs in system.rhs.values()):
+        # a turned state's derivative turns with it; every other state's stays as it was
+        if all(sympy.simplify(rhs.xreplace(flipped) + (rhs if s in turned else -rhs)) == 0
+               for s, rhs in system.rhs.items()) and any(rhs.has(c) for rhs in system.rhs.values()):
             odd.add(name)
     return odd
 

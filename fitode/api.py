@@ -99,10 +99,10 @@ def request(*, eq: str | None = None, system: str | OdeSystem | None = None, eq_
     source = "as asked"
     if observe is None and spec_observe not in (None, "auto"):
         observe, source = spec_observe, "from the equation file"
-    if isinstance(observe, str):
-        from fitode.train.config import OBSERVE_CHOICES
-        if observe not in OBSERVE_CHOICES:
-            raise ConfigError(f"unknown observation model {observe!r}; choose one of {', '.join(OBSERVE_CHOICES)}")
+    if isinstance(observe, (str, Mapping)):  # a name, or one per state
+        from fitode.train.observe.catalog import check_states, parse_observe
+        observe = parse_observe(observe)
+        check_states(observe, ode.states)
     points: tuple = ()
     if calibrate is not None:
         from fitode.calibrate import parse_calibration

@@ -115,31 +115,17 @@ def report_lines(system, spec, report) -> list[str]:
     return out
 
 
-_REMOVES = {
-    "brightness": "the pixels are decoded from sRGB to linear light and read linearly: no bend of the latent "
-                  "(I -> I**p, which would multiply a decay rate by p) and no transfer curve (about p = 1/2.2)",
-    "any": "a free encoder: the latent may be any function of the pixels; the gauge fixes only its scale and offset",
-    "position": "the centroid of the change along its line of motion, read linearly: no bend of the latent "
-                "(a bent parabola is nearly another parabola, with another g), but for the one bend a camera "
-                "at an angle makes (a perspective), which the whole clip fixes after a first training",
-    "size": "the apparent radius of what grows or shrinks, read linearly: no bend of the latent",
-    "distance": "the reciprocal of the apparent radius of what moves along the line of sight (a pinhole camera "
-                "sees radius f R / d), read linearly: the latent is affine in the distance, unbent",
-}
-
-
-def observation_lines(system, named: str | None) -> list[str]:
-    """Which observation model a fit of this equation uses and the degeneracies it removes."""
-    if named is not None and named != "auto":
-        text = [f"{named} (from the equation file): {_REMOVES[named]}"]
+def observation_lines(system, named: str | dict[str, str] | None) -> list[str]:
+    """Which observation model a fit of this equation uses and the degeneracies it removes (the
+    catalog's lines and auto rule, fitode.train.observe.catalog)."""
+    from fitode.train.observe.catalog import AUTO, MODELS, auto_rule
+    if isinstance(named, dict):
+        text = [f"{state}: {name} (from the equation file): {MODELS[name].line}" for state, name in named.items()]
+    elif named is not None and named != AUTO:
+        text = [f"{named} (from the equation file): {MODELS[named].line}"]
     else:
         from fitode.eqparse.identify import power_symmetric
-        moving = "auto -> position where the change moves one way (a fall, a slide, a level): " + _REMOVES["position"]
-        if not power_symmetric(system):
-            text = [moving, f"elsewhere any, as no constant follows a bend of the latent: {_REMOVES['any']}"]
-        else:
-            text = [moving, "brightness where the change stays in place (it brightens or dims): " + _REMOVES["brightness"],
-                    "where it moves back and forth: any, with the linear encoder, which removes the bend only"]
+        text = auto_rule(power_symmetric(system))
     out = ["observation (what the camera measures; --observe overrides):"]
     for para in text:
         out += textwrap.wrap(para, width=_WIDTH, initial_indent="  ", subsequent_indent="    ")

@@ -25,14 +25,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                          "to report scale-dependent constants in physical units")
 
     tr = add_training_arguments(p)
-    from fitode.train.config import OBSERVE_CHOICES
-    tr.add_argument("--observe", choices=OBSERVE_CHOICES, default=None,
-                    help="what the camera measures about the state: position (where the change is, along its "
-                         "line of motion), brightness (linear in the light, decoded from sRGB; see --light), size (the "
-                         "apparent radius of what grows or shrinks), distance (its reciprocal: motion along the "
-                         "line of sight), any "
-                         "(a free encoder, the paper's), or auto (chosen from the "
-                         "equation and a look at the frames, and printed; default: the equation file's, else auto)")
+    from fitode.train.observe.catalog import help_text
+    tr.add_argument("--observe", type=observe_value, default=None, metavar="MODEL", help=help_text())
     tr.add_argument("--train-fraction", type=fraction, metavar="F", default=None,
                     help="train on the first fraction of the frames; the rest shows extrapolation (default 1)")
 
@@ -44,6 +38,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                      "must not exist or be empty")
     out.add_argument("--quiet", action="store_true", help="no progress or chatter; the table is still printed")
     out.add_argument("--json", action="store_true", help="print result.json on stdout (human text goes to stderr)")
+
+
+def observe_value(text: str) -> str | dict[str, str]:
+    """--observe's value: a model's name, or one per state ("x=position;y=size")."""
+    from fitode.errors import ConfigError
+    from fitode.train.observe.catalog import parse_observe
+    try:
+        return parse_observe(text)
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def run(args: argparse.Namespace) -> int:

@@ -6,7 +6,8 @@ Format (every key but `name` and `equation` optional):
     description = "..."
     equation = "theta'' = -g/L*sin(theta) - zeta*theta'"
     stride = 2                      # suggested frame stride
-    observe = "brightness"          # what the camera measures (auto, any, brightness, position, size, distance)
+    observe = "brightness"          # what the camera measures (fitode.train.observe.catalog), or one per
+                                    # state: observe = { x = "position", y = "size" }
     [constants]                     # fixed at these values
     g = 9.80665
     [parameters]                    # learnable constants
@@ -50,7 +51,7 @@ class EquationSpec:
     prior_mean: float = 0.0
     prior_std: float = 1.0
     stride: int | None = None
-    observe: str | None = None
+    observe: str | dict[str, str] | None = None  # a model's name, or one per state
     description: str = ""
     path: str | None = None
 
@@ -131,10 +132,11 @@ def spec_from_dict(data: Mapping, where: str, path: str | None = None) -> Equati
     if stride is not None and (isinstance(stride, bool) or not isinstance(stride, int) or stride < 1):
         raise FitodeError(f"{where}: stride must be a positive whole number, got {stride!r}")
 
-    observe = data.get("observe")
-    from fitode.train.config import OBSERVE_CHOICES
-    if observe is not None and observe not in OBSERVE_CHOICES:
-        raise FitodeError(f"{where}: observe must be one of {', '.join(OBSERVE_CHOICES)}, got {observe!r}")
+    from fitode.train.observe.catalog import parse_observe
+    try:
+        observe = parse_observe(data.get("observe"))
+    except FitodeError as exc:
+        raise FitodeError(f"{where}: {exc}") from None
 
     spec = EquationSpec(name=data["name"].strip(), equation=data["equation"], constants=constants,
                         parameters=parameters, prior_mean=mean, prior_std=std, stride=stride, observe=observe,
@@ -148,6 +150,11 @@ def spec_from_dict(data: Mapping, where: str, path: str | None = None) -> Equati
         raise FitodeError(f"{where}: [parameters] names {', '.join(unknown)}, which "
                           f"{'is' if len(unknown) == 1 else 'are'} not a learnable constant of the equation "
                           f"(learnable: {', '.join(system.learnable) or 'none'})")
+    from fitode.train.observe.catalog import check_states
+    try:
+        check_states(observe, system.states)
+    except FitodeError as exc:
+        raise FitodeError(f"{where}: {exc}") from None
     return spec
 
 

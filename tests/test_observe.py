@@ -13,7 +13,7 @@ from fitode import cli, synth
 from fitode.eqparse import parse
 from fitode.train.observe import (BrightnessObservation, ObservationModel, PositionObservation, centroids, look,
                                   mend_one_way, resolve_observation)
-from fitode.video.light import linear_to_srgb, srgb_to_linear
+from fitode.train.observe.light import linear_to_srgb, srgb_to_linear
 
 DECAY = "I' = -gamma*I"
 
@@ -216,7 +216,7 @@ def _scaled_disc(radii, centres, h=48, w=64, seed=0) -> np.ndarray:
 
 
 def test_the_apparent_radius_of_a_disc_that_recedes_partly_outside_the_frame():
-    from fitode.train.extent import apparent_radii
+    from fitode.train.observe.extent import apparent_radii
     t = np.arange(40) / 40
     dist = 1 + 2 * t ** 2  # falling away: radius 30 -> 10 pixels, cut by the frame's top and bottom at first
     radii = 30 / dist

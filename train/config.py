@@ -12,11 +12,14 @@ from typing import Any, Mapping
 
 from fitode.errors import ConfigError
 
+from .observe.catalog import CHOICES
+
 ENCODER_NAMES = ("mlp", "cnn", "linear")
 ENCODER_CHOICES = ("auto",) + ENCODER_NAMES  # auto: linear where a free encoder could report any rate
-# what the camera measures about the state (train/observe.py); auto: chosen from the equation and the frames
-OBSERVE_CHOICES = ("auto", "any", "brightness", "position", "size", "distance")
-LIGHT_CHOICES = ("srgb", "linear")  # how the brightness observation reads pixel values (fitode.video.light)
+# what the camera measures about the state: the catalog of train/observe (torch-free); auto: chosen from the
+# equation and the frames
+OBSERVE_CHOICES = CHOICES
+LIGHT_CHOICES = ("srgb", "linear")  # how the brightness observation reads pixel values (train/observe/light.py)
 INTEGRATOR_NAMES = ("rk4", "symplectic", "euler")
 INTEGRATOR_ALIASES = {"paper": "symplectic", "semi-implicit": "symplectic", "semi_implicit": "symplectic",
                       "explicit-euler": "euler"}

@@ -161,6 +161,23 @@ def _dense_layers(module: nn.Module, names: list[str]) -> list[tuple[int, int] |
     return layers
 
 
+class FixedReadout(nn.Module):
+    """R restarts that read their inputs (N, k, 1, 1) as the latent itself, (R, N, k), with no
+    weights: a state measured in its own units, which no encoder may rescale."""
+
+    def __init__(self, restarts: int, in_shape: tuple[int, int, int], dim: int):
+        super().__init__()
+        columns = in_shape[0] * in_shape[1] * in_shape[2]
+        if columns != dim:
+            raise ConfigError(f"a latent in the state's own units reads one measured column per state: "
+                              f"{columns} column{'s' if columns != 1 else ''} for {dim} state{'s' if dim != 1 else ''}")
+        self.restarts = restarts
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        z = x.reshape(x.shape[0], -1)
+        return z[None].expand(self.restarts, *z.shape)
+
+
 def normalise_frames(frames: torch.Tensor) -> torch.Tensor:
     """Per-video normalisation: remove the mean image, divide by the global standard deviation.
 

@@ -84,7 +84,10 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
     encoder = observation.encoder(config.encoder, tuple(frames.shape[1:]), system.dim, seeds,
                                   output_mean=config.prior[0], output_std=config.prior[1]).to(device)
     gauge = Gauge(plan, system.states, n_runs, config.prior, enabled=config.gauge).to(device)
-    if targets:
+    # a latent in the state's own units is not standardised to the prior: the KL term would only
+    # add a constant (nothing in the readout moves) that hides the fit's progress from the stopping rule
+    use_kl = config.use_kl and not observation.physical_units
+    if targets and any(p.requires_grad for p in encoder.parameters()):  # a fixed readout has nothing to learn
         distill(encoder, frames, targets, config)
     gauge.enter_domain(encode_all(encoder, frames))
 
@@ -147,7 +150,7 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
             z_win = z[:, inverse]  # (R, B, L, d)
             x_pred = block(gauge.to_state(z_win[:, :, :nc]), length, dt, window_index=starts)
             total, mse, kl = restart_losses(z_win, gauge.to_latent(x_pred), first, prior=config.prior,
-                                            use_kl=config.use_kl)
+                                            use_kl=use_kl)
             extra = observation.regulariser(z)
             if extra is not None:
                 total = total + extra
@@ -195,23 +198,27 @@ def encode_all(encoder, frames: torch.Tensor) -> torch.Tensor:
 
 
 def distill(encoder, frames: torch.Tensor, targets: Mapping[int, np.ndarray], config: TrainConfig) -> None:
-    """Teach the encoders of some restarts a given latent (standardised to the prior) before the
-    joint training: a start from the data carries the readout of the frames it was fitted to."""
+    """Teach the encoders of some restarts a given latent, (T,) or (T, k) for the first k latent
+    dimensions, each column standardised to the prior, before the joint training: a start from
+    the data carries the readout of the frames it was fitted to."""
     n_runs = encoder.restarts
     mean, std = config.prior
-    target = torch.zeros(n_runs, frames.shape[0], 1, device=frames.device)
+    columns = {r: np.asarray(z, dtype=float).reshape(len(z), -1) for r, z in targets.items()}
+    k = max(z.shape[1] for z in columns.values())
+    target = torch.zeros(n_runs, frames.shape[0], k, device=frames.device)
+    weight = torch.zeros(n_runs, 1, k, device=frames.device)  # which latent dimensions each restart is taught
     active = torch.zeros(n_runs, dtype=torch.bool, device=frames.device)
-    for r, z in targets.items():
-        z = np.asarray(z, dtype=float)
-        z = mean + std * (z - z.mean()) / (z.std() or 1.0)
-        target[r, : len(z), 0] = torch.as_tensor(z[: frames.shape[0]], dtype=target.dtype)
+    for r, z in columns.items():
+        z = mean + std * (z - z.mean(axis=0)) / np.where(z.std(axis=0) > 0, z.std(axis=0), 1.0)
+        target[r, : len(z), : z.shape[1]] = torch.as_tensor(z[: frames.shape[0]], dtype=target.dtype)
+        weight[r, 0, : z.shape[1]] = 1.0
         active[r] = True
-    n = min(frames.shape[0], min(len(z) for z in targets.values()))
+    n = min(frames.shape[0], min(len(z) for z in columns.values()))
     opt = BatchedAdam([{"params": list(encoder.parameters()), "lr": config.lr * 10, "name": "encoder"}], n_runs)
     for _ in range(DISTILL_STEPS):
         interrupts.check()
-        z = encoder(frames[:n])[..., :1]
-        loss = (z - target[:, :n]).pow(2).mean(dim=(1, 2))
+        z = encoder(frames[:n])[..., :k]
+        loss = ((z - target[:, :n]).pow(2) * weight).sum(dim=2).mean(dim=1) / weight.sum(dim=(1, 2)).clamp_min(1)
         opt.zero_grad()
         torch.where(active, loss, torch.zeros_like(loss)).sum().backward()
         opt.step(active)

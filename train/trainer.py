@@ -1,14 +1,14 @@
 """fit_frames: a plan's restarts, the batched training loop, selection, the checks and the FitResult.
 
 The parts live beside it: the options in config.py, the loop in loop.py, the stopping rule in
-stopping.py, the observation model (frames -> latent) in observe.py, the gauge in gauge.py, the
+stopping.py, the observation model (frames -> latent) in observe/, the gauge in gauge.py, the
 choice of runs in selection.py.
 """
 from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 import torch
@@ -78,8 +78,8 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
     if frames.shape[0] != n_total:
         raise TrainingError(f"the plan is for {n_total} frames, got {frames.shape[0]}")
     device = torch.device(config.device)
-    prepared = observation.prepare(frames.to(device), config.encoder, fit_frames=n_train)
-    gauges = gauge_plan(system)
+    prepared = observation.prepare(frames.to(device), config.encoder, fit_frames=n_train).in_order(system.states)
+    gauges = observation.gauge_plan(gauge_plan(system))
     coefs = prepared.components[:n_train]  # the training frames' leading principal components
     fit = _train_pass(prepared.inputs, plan, gauges, coefs, callback, progress)
     perspective = straight = None  # straight: one trajectory over the best run's state, for both checks
@@ -126,7 +126,7 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
         states=list(system.states), equation=system.text, fixed=dict(system.fixed),
         settings=config.as_dict(), selection_factor=config.selection_factor,
         meta={"interrupted": interrupted, "plan": plan.to_dict(),
-              "measured": observation.measured, "physical_units": observation.physical_units, "subspace": prepared.note, "rank": prepared.rank,
+              "measured": observation.measured, "physical_units": observation.fixes_scale(), "subspace": prepared.note, "rank": prepared.rank,
               "gauge": {s: g.describe() for s, g in gauges.items()}, "own_units": sorted(own_units),
               "left_out": fit.left_out},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},
@@ -134,10 +134,11 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
 
 
 def _own_units(system: OdeSystem, analysis, observation: ObservationModel) -> set[str]:
-    """The constants whose restarts are not comparable: with a measured latent (a measured
-    observation) every restart reads the same path, scaled and shifted in its own way, and a
-    constant whose value depends on the latent's scale differs between them by that alone."""
-    if not observation.measured or observation.physical_units:
+    """The constants whose restarts are not comparable: with a measured latent every restart
+    reads the same path, scaled and shifted in its own way, and a constant whose value depends on
+    the latent's scale differs between them by that alone; none where the latent is the state in
+    its own units (every restart reads the same numbers)."""
+    if not observation.measured or observation.fixes_scale():
         return set()
     return {n for n in system.learnable if analysis[n].scale == "dependent"}
 
@@ -198,20 +199,29 @@ def _train_pass(frames: torch.Tensor, plan: FitPlan, gauges, coefs: np.ndarray, 
         errors = "; ".join(f"run {r.index + 1}: {r.error}" for r in records)
         raise TrainingError(f"every run failed ({errors})")
     best = min(selected, key=lambda i: records[i].loss)
-    _align(records, latents[:, :n_train], best, sign_odd(system))
+    _align(records, latents[:, :n_train], best,
+           lambda columns: sign_odd(system, [system.states[j] for j in columns]), per_column=observation.measured)
     return _Pass(records, latents, rollouts, states, selected, best, interrupted, left_out)
 
 
-def _align(records: list[RunRecord], latents: np.ndarray, best: int, odd: set[str]) -> None:
-    """Each run's values in the best run's orientation: where its (one-dimensional) latent runs
-    opposite to the best run's, the constants that change sign with the state are negated."""
-    ref = latents[best, :, 0] - latents[best, :, 0].mean()
+def _align(records: list[RunRecord], latents: np.ndarray, best: int,
+           odd: set[str] | Callable[[frozenset[int]], set[str]], per_column: bool = False) -> None:
+    """Each run's values in the best run's orientation. Where a run's latent runs opposite to the
+    best run's, the constants that change sign with the state are negated: for a one-dimensional
+    latent, or (per_column: each latent dimension is one measured state) per dimension, each
+    state flipped on its own. odd: the constants that change sign when every state does, or a
+    function from the flipped latent dimensions to the constants that change sign with them."""
+    d = latents.shape[2]
+    ref = latents[best] - latents[best].mean(axis=0)
     for r in records:
-        flip = False
-        if odd and latents.shape[2] == 1 and r.final and np.all(np.isfinite(latents[r.index])):
-            z = latents[r.index, :, 0] - latents[r.index, :, 0].mean()
-            flip = float(z @ ref) < 0
-        r.aligned = {n: (-v if flip and n in odd else v) for n, v in r.final.items()}
+        flipped: frozenset[int] = frozenset()
+        if (d == 1 or per_column) and r.final and np.all(np.isfinite(latents[r.index])):
+            z = latents[r.index] - latents[r.index].mean(axis=0)
+            flipped = frozenset(j for j in range(d) if float(z[:, j] @ ref[:, j]) < 0)
+        names: set[str] = set()
+        if flipped:
+            names = (odd if flipped == frozenset(range(d)) else set()) if isinstance(odd, set) else odd(flipped)
+        r.aligned = {n: (-v if n in names else v) for n, v in r.final.items()}
 
 
 @contextlib.contextmanager

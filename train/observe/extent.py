@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import torch
 
-from .observe import _noise
+from .tracking import noise_level
 
 EDGE_CORE = 0.5
 ROUNDS = 5
@@ -42,7 +42,7 @@ def apparent_radii(frames: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, in
     if gray.shape[0] < 3:
         raise ValueError("the size of an object needs at least 3 frames")
     change = torch.cat([gray[1:2] - gray[:1], gray[2:] - gray[:-2], gray[-1:] - gray[-2:-1]]).abs()
-    noise = _noise(change)
+    noise = noise_level(change)
     floor = torch.maximum(3 * noise, EDGE_CORE * change.flatten(1).max(dim=1).values)[:, None, None]
     heat = torch.where(change > floor, change, torch.zeros_like(change))
     mass = heat.sum(dim=(1, 2))

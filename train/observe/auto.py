@@ -1,0 +1,127 @@
+"""Which observation model a fit uses: an instance as given, a name (or one per state), or the
+auto choice from the equation and a look at the frames. The same rule in prose, for
+`fitode check`, is catalog.auto_rule.
+
+The auto choice looks at where the frames change (the heat map of the position observation): a
+change whose centroid travels farther than the changing region's own size is something that
+moves; one that moves ONE_WAY (|rank correlation| of its travel with time) is a fall, a slide or
+a level that drops; a change that stays in place is light.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import torch
+
+from .base import ObservationModel
+from .brightness import BrightnessObservation
+from .catalog import AUTO, model_class, parse_observe
+from .position import PositionObservation
+from .subspace import SUBSPACE_JUMP
+from .tracking import ONE_WAY, centroids, line_of_motion, noise_level, one_way
+
+STRONG = 0.25  # frames whose largest change is at least this share of the clip's largest
+LOOK_FRAMES = 256
+
+
+def named_model(name: str, light: str = "srgb") -> ObservationModel:
+    """The catalog's model of this name, with its options."""
+    cls = model_class(name)
+    return cls(light) if issubclass(cls, BrightnessObservation) else cls()
+
+
+def resolve_observation(spec: str | Mapping[str, str] | ObservationModel | None, system,
+                        frames: torch.Tensor | None = None, light: str = "srgb", encoder: str = "auto",
+                        source: str = "as asked") -> ObservationModel:
+    """The observation model a fit uses, bound to the equation's states, with its reason: an
+    instance as given, a name, one name per state ({state: name} or "x=position;y=size"), or
+    "auto" (None): position where the change moves one way, brightness for a single first-order
+    linear equation whose frames brighten or dim as one, any otherwise (and wherever an encoder
+    other than linear was asked for). source: where a named model came from, for its reason."""
+    model = _resolved(spec, system, frames, light, encoder, source)
+    model.bind(system)
+    return model
+
+
+def _resolved(spec, system, frames, light, encoder, source) -> ObservationModel:
+    if isinstance(spec, ObservationModel):
+        spec.reason = spec.reason or f"{spec.name} (as given)"
+        return spec
+    name = parse_observe(AUTO if spec is None else spec)
+    if isinstance(name, dict):
+        from .per_state import PerStateObservation
+        model = PerStateObservation({state: named_model(n, light) for state, n in name.items()}, system.states)
+        model.reason = f"{model.name} ({source})"
+        return model
+    if name != AUTO:
+        model = named_model(name, light)
+        model.reason = f"{name} ({source})"
+        return model
+    if encoder not in ("auto", "linear"):
+        model = ObservationModel()
+        model.reason = f"any (auto: the {encoder} encoder was asked for)"
+        return model
+    from fitode.eqparse.identify import power_symmetric  # sympy: only when a fit is set up
+    seen = look(frames) if frames is not None else None
+    if seen is not None and seen.moves and seen.one_way >= ONE_WAY:
+        model = PositionObservation()
+        model.reason = (f"position (auto: the change moves {seen.travel:.0f} pixels, {seen.travel / seen.size:.0f}x its "
+                        f"size, one way (rank correlation {seen.one_way:.2f} with time): a free encoder could bend "
+                        "its path into one with other constants)")
+        return model
+    if not power_symmetric(system):
+        model = ObservationModel()
+        model.reason = "any (auto: the paper's free encoder; the equation's constants do not follow a bend of the latent)"
+        return model
+    if seen is not None and not seen.moves:
+        model = BrightnessObservation(light)
+        why = (f"one pattern that brightens or dims: the first singular value is {seen.gap:.0f}x the second"
+               if seen.gap >= SUBSPACE_JUMP else f"its centre moves {seen.travel:.1f} pixels, less than its size")
+        model.reason = f"brightness (auto: a single first-order linear equation, and the change stays in place, {why})"
+    else:
+        model = ObservationModel()
+        model.reason = ("any (auto: the change moves back and forth; the linear encoder keeps the rate)"
+                        if seen is not None else "any (auto: no frames to look at)")
+    return model
+
+
+@dataclass
+class Look:
+    """Where the frames change: how far the change's centroid travels, the changing region's size
+    (the square root of its area), both in pixels, and how one-way the travel runs in time."""
+
+    travel: float
+    size: float
+    one_way: float
+    gap: float = 1.0  # the frames' first singular value over their second
+
+    @property
+    def moves(self) -> bool:
+        """The change travels farther than its size, and it is not one pattern that brightens
+        and dims: a lamp's frames lie on one line in pixel space (a clear gap after the first
+        singular value), even where its brightest core seems to wander."""
+        return self.travel > self.size and self.gap < SUBSPACE_JUMP
+
+
+@torch.no_grad()
+def look(frames: torch.Tensor) -> Look:
+    """The look behind the auto choice, from at most LOOK_FRAMES frames spread over the clip."""
+    sub = frames[:: max(1, frames.shape[0] // LOOK_FRAMES)]
+    xy, _, _, peak = centroids(sub)
+    # frames that barely differ from the static scene (a lamp at its median brightness) have a
+    # centroid of noise: only the frames with a clear change say where it is
+    strong = peak >= STRONG * peak.max()
+    xy = xy[strong]
+    # the size of everything that changes (a lamp's whole glow, not only its brightest core)
+    gray = sub.double().mean(dim=1)
+    diff = (gray - gray.median(dim=0).values).abs()
+    pixels = float((diff[strong] > 3 * noise_level(diff)).sum(dim=(1, 2)).double().mean()) if bool(strong.any()) else 0.0
+    flat = gray.reshape(gray.shape[0], -1)
+    flat = flat - flat.mean(dim=0)
+    sv = torch.linalg.eigvalsh(flat @ flat.T).flip(0).clamp_min(0).sqrt()
+    gap = float(sv[0] / sv[1].clamp_min(1e-12)) if len(sv) > 1 else 1.0
+    if xy.shape[0] < 3 or float((xy - xy.mean(dim=0)).abs().max()) == 0:
+        return Look(0.0, max(pixels, 1.0) ** 0.5, 0.0, gap)
+    _, path = line_of_motion(xy)
+    return Look(float(path.max() - path.min()), max(pixels, 1.0) ** 0.5, one_way(path), gap)

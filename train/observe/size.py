@@ -1,0 +1,59 @@
+"""The size and distance observations: the latent is affine in an apparent radius (extent.py),
+or in its reciprocal."""
+from __future__ import annotations
+
+import torch
+
+from fitode.errors import ConfigError
+
+from .base import MeasuredObservation, ObservationModel, Prepared
+from .extent import SMALL, apparent_radii
+
+
+class SizeObservation(MeasuredObservation):
+    """The camera sees how large something looks: the latent is affine in its apparent radius
+    (extent.py), for what grows or shrinks in place (the paper's scale videos, a balloon, a
+    spreading drop). Read linearly like a position: no encoder can bend the size into another
+    law. (The distance model is the perspective of a size: no perspective re-reading here.)"""
+
+    name = "size"
+    how = "read linearly"
+
+    def reading(self, radius: torch.Tensor) -> torch.Tensor:
+        return radius
+
+    def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
+        out = ObservationModel.prepare(self, frames, architecture, fit_frames)  # the components the checks score against
+        radius, _, unseen = apparent_radii(frames)
+        if unseen > 0.1 * frames.shape[0]:
+            raise ConfigError(f"the {self.name} observation sees no outline change in {unseen} of {frames.shape[0]} "
+                              "frames (the object keeps its size); trim the clip to the motion (--start/--end) or "
+                              "observe 'any'")
+        if float(radius.min()) < 0.5:
+            raise ConfigError(f"the {self.name} observation measured an apparent radius of {float(radius.min()):.2f} "
+                              "pixels: nothing in view grows or shrinks; observe 'position' or 'any'")
+        n_fit = radius.shape[0] if fit_frames is None else int(fit_frames)
+        value = self.reading(radius)
+        z = (value - value[:n_fit].mean()) / value[:n_fit].std().clamp_min(1e-12)
+        smallest = float(radius[:n_fit].min())
+        note = (f"{self.name}: the apparent radius of the outline that grows or shrinks ({smallest:.1f} to "
+                f"{float(radius[:n_fit].max()):.1f} pixels), {self.how}")
+        caution = None
+        if smallest < SMALL:
+            caution = (f"the object is {smallest:.1f} pixels in radius at its smallest, and the blur shrinks a "
+                       f"measured radius under {SMALL:g} pixels (by 15-20% at 2): give a larger --size or "
+                       "--roi around the object")
+        return self.column(z.to(frames.dtype), out.components, note, caution)
+
+
+class DistanceObservation(SizeObservation):
+    """The camera sees how large something looks as it moves along the line of sight: a pinhole
+    camera sees an object of radius R at distance d with radius f R / d, so the latent is affine
+    in the reciprocal of the apparent radius (a fall towards or away from the camera: the
+    paper's free-fall-scale videos)."""
+
+    name = "distance"
+    how = "read as its reciprocal, affine in the distance from the camera"
+
+    def reading(self, radius: torch.Tensor) -> torch.Tensor:
+        return 1.0 / radius

@@ -1,0 +1,145 @@
+"""Where something is in each frame: the centroid of what differs most from the static scene,
+and the clean-up of a path that runs one way (the position observation and the auto choice).
+
+The heat map is what differs from the clip's median frame (the static scene) by more than three
+times the noise (median absolute deviation) and by more than CORE of the frame's largest
+difference, cut to its strongest connected region; its centroid moves with the object, exactly
+for a rigid object in view on a static background, whatever its shape, colour or contrast.
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+ONE_WAY = 0.9  # |rank correlation| with time from which a path counts as running one way
+CORE = 0.7
+MEND_SPAN = 21  # frames around each frame whose running median a one-way path is checked against
+MEND_SIGMAS = 6.0
+MEND_PIXELS = 1.0
+MENDED_MAX = 0.1  # a larger share of mended frames is a finding: the centroid is not the object's
+
+
+@torch.no_grad()
+def centroids(frames: torch.Tensor, fit_frames: int | None = None) -> tuple[torch.Tensor, float, int, torch.Tensor]:
+    """(T, 2) image coordinates (x, y) of the centroid of each frame's change from the static
+    scene, the mean number of pixels that carry it, how many frames show no change (their
+    centroid is the previous frame's), and each frame's largest change (T,).
+
+    The static scene is first the median frame of the first fit_frames; an object that slows
+    down (a decay, the end of a slide) sits in that median where it lingers, and its ghost there
+    pulls the centroid. So a second pass rebuilds each pixel's background from the frames in
+    which the first pass put the object farther away than twice its size, and measures again.
+    """
+    gray = frames.double().mean(dim=1)  # (T, H, W)
+    n_fit = gray.shape[0] if fit_frames is None else int(fit_frames)
+    background = gray[:n_fit].median(dim=0).values
+    xy, heat = _centroids(gray, background)
+    size = float((heat > 0).sum(dim=(1, 2)).double().mean()) ** 0.5
+    h, w = gray.shape[1:]
+    ys, xs = torch.meshgrid(torch.arange(h, dtype=gray.dtype, device=gray.device),
+                            torch.arange(w, dtype=gray.dtype, device=gray.device), indexing="ij")
+    far = ((xs[None] - xy[:n_fit, 0, None, None]) ** 2 + (ys[None] - xy[:n_fit, 1, None, None]) ** 2) > (2 * size + 2) ** 2
+    count = far.sum(dim=0)
+    clean = (gray[:n_fit] * far).sum(dim=0) / count.clamp_min(1)
+    background = torch.where(count >= max(3, n_fit // 10), clean, background)
+    xy, heat = _centroids(gray, background)
+    mass = heat.sum(dim=(1, 2))
+    seen = mass > 0
+    for t in range(1, len(xy)):  # a frame with no change keeps the last position seen
+        if not seen[t]:
+            xy[t] = xy[t - 1]
+    pixels = float((heat > 0).sum(dim=(1, 2)).double().mean())
+    return xy, pixels, int((~seen).sum()), heat.flatten(1).max(dim=1).values
+
+
+def mend_one_way(path: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Tensor, int]:
+    """A path that runs one way (rank correlation with time at least ONE_WAY over the first n_fit
+    frames) with the frames that leave it read from their neighbours, and how many those are.
+
+    A one-way path is its own running median (the median of a monotone run is its middle), so
+    a frame far from the running median of the MEND_SPAN frames around it is not the object:
+    where the change from the static scene is a boundary (a water level), it vanishes as the
+    level passes its median place, and the centroid of whatever else changes then (the jet under
+    the bottle) is taken for a few frames. Far means more than MEND_SIGMAS times the residuals'
+    robust spread and more than MEND_PIXELS. The ends are extended by point reflection, which
+    keeps a steady run steady. A path that turns back (an oscillation) is left as it is."""
+    n = path.shape[0]
+    n_fit = n if n_fit is None else int(n_fit)
+    if n_fit < 8:
+        return path, 0
+    if one_way(path[:n_fit]) < ONE_WAY:
+        return path, 0
+    x = path.double().cpu().numpy()
+    half = max(2, min(MEND_SPAN // 2, n // 4))
+    mended, off = x, np.zeros(n, dtype=bool)
+    for _ in range(2):  # the second round against the mended path: the first's median leans towards a run of strays
+        padded = np.concatenate([2 * mended[0] - mended[half:0:-1], mended,
+                                 2 * mended[-1] - mended[-2:-half - 2:-1]])
+        residual = x - np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1), axis=1)
+        spread = float(noise_level(torch.from_numpy(np.abs(residual))))
+        off = np.abs(residual) > max(MEND_SIGMAS * spread, MEND_PIXELS)
+        if not off.any() or off.all():
+            return path, 0
+        good = np.flatnonzero(~off)
+        mended = x.copy()
+        mended[off] = np.interp(np.flatnonzero(off), good, x[good])
+    return torch.as_tensor(mended, dtype=path.dtype, device=path.device), int(off.sum())
+
+
+def one_way(path: torch.Tensor) -> float:
+    """How one way a path (T,) runs in time: the absolute rank correlation of its values with
+    their frame numbers (1: monotone; about 0: back and forth)."""
+    ranks = torch.argsort(torch.argsort(path)).double()
+    t = torch.arange(len(ranks), dtype=torch.float64, device=ranks.device)
+    return abs(float(torch.corrcoef(torch.stack([ranks, t]))[0, 1]))
+
+
+def line_of_motion(xy: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """The direction (2,) along which the centroids of the first n_fit frames spread most, and
+    every centroid's signed distance along it from their mean, (T,)."""
+    n_fit = xy.shape[0] if n_fit is None else n_fit
+    centred = xy - xy[:n_fit].mean(dim=0)
+    direction = torch.linalg.svd(centred[:n_fit], full_matrices=False).Vh[0]
+    return direction, centred @ direction
+
+
+def noise_level(diff: torch.Tensor) -> torch.Tensor:
+    """The noise level of differences from the static scene: their median absolute value, scaled
+    to a standard deviation (most pixels of most frames show only noise)."""
+    return 1.4826 * diff.flatten().median() + 1e-12
+
+
+def _centroids(gray: torch.Tensor, background: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    diff = (gray - background).abs()
+    noise = noise_level(diff)
+    # only each frame's strongest change: the object, not a hand that moves at the edge, a
+    # shadow or the camera's exposure drifting over the whole wall
+    floor = torch.maximum(3 * noise, CORE * diff.flatten(1).max(dim=1).values)[:, None, None]
+    heat = _strongest_region(torch.where(diff > floor, diff, torch.zeros_like(diff)))
+    mass = heat.sum(dim=(1, 2)).clamp_min(1e-12)
+    h, w = gray.shape[1:]
+    ys = torch.arange(h, dtype=heat.dtype, device=heat.device)
+    xs = torch.arange(w, dtype=heat.dtype, device=heat.device)
+    cx = (heat.sum(dim=1) * xs).sum(dim=1) / mass
+    cy = (heat.sum(dim=2) * ys).sum(dim=1) / mass
+    return torch.stack([cx, cy], dim=1), heat
+
+
+def _strongest_region(heat: torch.Tensor) -> torch.Tensor:
+    """Each frame's heat (T, H, W) cut to its connected region of largest total change (pixels
+    one apart count as connected): a hand that pulls back at the frame's edge while a fading,
+    motion-blurred ball crosses the middle passes the threshold too, and the centroid of both
+    lies between them, where nothing is."""
+    import cv2
+
+    kept = heat.clone()
+    near = np.ones((3, 3), np.uint8)
+    for t, frame in enumerate(heat.cpu().numpy()):
+        mask = cv2.dilate((frame > 0).astype(np.uint8), near)
+        n, labels = cv2.connectedComponents(mask, connectivity=8)
+        if n <= 2:  # one region, or none
+            continue
+        mass = np.bincount(labels.ravel(), weights=frame.ravel(), minlength=n)
+        mass[0] = 0.0
+        kept[t] = torch.where(torch.from_numpy(labels == int(np.argmax(mass))).to(heat.device), heat[t], 0.0)
+    return kept
