@@ -60,7 +60,8 @@ def fit(frames, dt: float, *, eq: str | None = None, system: str | OdeSystem | N
     equation file (eq_file). const fixes constants, free frees known ones, init sets starting
     values for every restart, prior overrides the equation file's (mean, std). observe is the
     observation model: "auto" (None: the equation file's, else chosen from the equation and the
-    frames), "any", "brightness", "position", "size", "distance", or an ObservationModel instance.
+    frames), a name of fitode.train.observe.catalog, one per state ({"x": "position", "y": "size"} or
+    "x=position;y=size"), or an ObservationModel instance (a model of one's own).
     calibrate: known values of states, "h(0)=0.07; h(25)=0.01" (times in seconds from the first
     frame, plus time_offset): scale-dependent constants come back in physical units, judged as such.
     options: any TrainConfig field (restarts, max_steps, window, integrator, substeps, encoder,
