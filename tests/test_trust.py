@@ -111,7 +111,7 @@ def test_batched_restarts_equal_separate_runs():
     frames = ObservationModel().prepare(torch.as_tensor(v.frames, dtype=torch.float32)[:, None]).inputs
     system = parse("x'' = -k*x - c*x'")
     plan = gauge_plan(system)
-    config = TrainConfig(max_steps=60, restarts=2, window=10)
+    config = TrainConfig(max_steps=60, restarts=2, window=10, encoder="mlp")
     inits, seeds = [{"k": 3.0, "c": 0.5}, {"k": 6.0, "c": -1.0}], [11, 12]
     both = train_restarts(frames, 0.2, system, {}, config, inits, seeds=seeds, observation=ObservationModel(),
                           plan=plan)
@@ -134,7 +134,7 @@ def test_batched_restarts_on_cuda_match_the_cpu():
     runs = {}
     for device in ("cpu", "cuda"):
         frames = ObservationModel().prepare(torch.as_tensor(v.frames, dtype=torch.float32)[:, None].to(device)).inputs
-        config = TrainConfig(max_steps=40, min_steps=40, restarts=2, window=10, device=device)
+        config = TrainConfig(max_steps=40, min_steps=40, restarts=2, window=10, encoder="mlp", device=device)
         runs[device] = train_restarts(frames, 0.2, system, {}, config, inits, seeds=seeds,
                                       observation=ObservationModel(), plan=gauge_plan(system)).records
     for a, b in zip(runs["cpu"], runs["cuda"]):
