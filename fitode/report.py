@@ -252,7 +252,8 @@ def run_lines(result) -> list[str]:
     for r in result.runs:
         mark = "*" if r.index == result.best else ("+" if r.index in result.selected else " ")
         consts = " ".join(f"{k}={v:.5g}" for k, v in r.final.items())
-        state = "settled" if r.converged else ("failed: " + (r.error or "?") if r.status != "ok" else "step limit")
+        state = ("settled" if r.converged else "step limit" if r.status == "ok" else
+                 r.error or r.status if r.status == "interrupted" else "failed: " + (r.error or "?"))
         score = f"score {r.score:5.2f}" if r.score is not None else "score   -  "
         lines.append(f"run {r.index + 1:>2}{mark} {r.steps:>5} steps  loss {r.loss:.4g}  {score}  "
                      f"{consts}  ({state})")
