@@ -21,14 +21,16 @@ from fitode.errors import TrainingError
 
 from . import interrupts
 from .config import TrainConfig
+from .consistency import one_trajectory_check, whole_clip_check
 from .loop import Callback, StepInfo, Trained, encode_all, train_restarts
-from .holds import one_trajectory_check, perspective_check, trajectory_fit, whole_clip_check
 from .observe import ObservationModel
+from .perspective import perspective_check
 from .plan import FitPlan
 from .result import Estimate, FitResult, RunRecord
 from .score import dominant_period, separation_score
 from .selection import select_runs, selection
 from .starts import CANDIDATES, data_starts
+from .trajectory import fit_trajectory
 from .verdict import Finding, video_checks
 
 DATA_STARTS = 2  # restarts that start from the data search (fitode.train.starts), when there are enough
@@ -84,8 +86,8 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
     fit = _train_pass(prepared.inputs, plan, gauges, coefs, callback, progress)
     perspective = straight = None  # straight: one trajectory over the best run's state, for both checks
     if observation.applies("perspective") and not fit.interrupted:
-        straight = trajectory_fit(system, params, fit.states[fit.best, :n_train], dt, fit.records[fit.best].final,
-                                  config)
+        straight = fit_trajectory(system, params, fit.states[fit.best, :n_train], dt, fit.records[fit.best].final,
+                                  integrator=config.integrator, substeps=config.substeps)
         perspective = perspective_check(system, params, fit.states[fit.best, :n_train], dt,
                                         fit.records[fit.best].final, config, straight=straight)
         if perspective is not None and perspective["apply"]:

@@ -102,8 +102,8 @@ class ObservationModel:
         start-up transient. rivals: restarts left out of the estimate may have ended in another
         basin (a measured latent is the same for every restart: those left out fitted it worse).
         perspective: re-read a one-dimensional measured path through a camera's perspective
-        (holds.perspective_check). trajectory: the whole-clip, halves and one-trajectory checks
-        of a measured path (holds.py)."""
+        (perspective.perspective_check). trajectory: the whole-clip, halves and one-trajectory checks
+        of a measured path (consistency.py)."""
         if check not in CHECKS:
             raise ValueError(f"unknown check {check!r}; one of {', '.join(CHECKS)}")
         free = not self.measured

@@ -56,11 +56,11 @@ class PositionObservation(MeasuredObservation):
         return self.column(z.to(frames.dtype), out.components, note, caution)
 
     def reread(self, prepared: Prepared, state: np.ndarray, perspective: dict, fit_frames: int) -> Prepared | None:
-        """The path read through the camera's perspective that holds.perspective_check found on a
+        """The path read through the camera's perspective that perspective.perspective_check found on a
         first training's state (T, 1), which is affine in the path: the encoder's new input is
         that state bent, at unit spread and in the path's orientation. None where a frame lies
         beyond the bend's pole."""
-        from ..holds import unbend
+        from ..perspective import unbend
 
         bent = unbend(np.asarray(state, dtype=np.float64)[:, 0], perspective["c"], perspective["middle"])
         if bent is None:

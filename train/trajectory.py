@@ -1,0 +1,199 @@
+"""One trajectory fitter: the equation's constants (and starting state) that best follow a fixed
+trajectory, with standard errors.
+
+A fixed trajectory x (T, k), one column per state (a measured path, a calibrated latent, a frozen
+readout of the frames), is fitted by the physics block in float64 with L-BFGS and a strong-Wolfe
+line search. Two ways to cut it:
+
+- whole (windows=None): x is one trajectory of the equation; its starting frames and the
+  constants are both free. What acts slowly (light damping, drag) shows over the whole clip.
+- windows (windows=N): x is cut into windows of N frames, each rolled out from its own first
+  frames as the training does, with the constants shared (multiple shooting). This is the
+  training's own question asked of a fixed latent, so a window fit on a latent and on its affine
+  image give constants that differ only by the map.
+
+Every state counts equally, whatever its units: each column's residual is divided by that
+column's spread. The errors come from the Jacobian (least squares' covariance, the Jacobian taken
+forward-mode), widened for residuals that hang together from frame to frame (by (1 + r) / (1 - r)
+for a lag-one correlation r) and, for windows, for the frames that several overlapping windows
+count again.
+
+bend: x is first read through a perspective (one-dimensional homography) about its middle m,
+x -> m + (x - m) / (1 + c (x - m)), with c fitted too (kept so that the pole stays outside the
+measured range) and returned as the constant PERSPECTIVE, in 1 / x's units; the misfit is then
+measured against the bent x's own spread, so that a bend cannot win by shrinking x.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+ITERATIONS = 100
+MAX_WINDOWS = 128  # windows beyond this are thinned to evenly spaced ones: more say little new
+PERSPECTIVE = "perspective"  # the bend's c, among the values when bend=True
+POLE_MARGIN = 0.9
+
+
+@dataclass
+class TrajectoryFit:
+    """What fit_trajectory found."""
+
+    values: dict[str, float]  # the learnable constants (and PERSPECTIVE with bend)
+    errors: dict[str, float]  # their standard errors
+    misfit: float  # RMS residual in units of each (bent) state's spread
+    residuals: np.ndarray  # (T, k) whole; (windows, N - context, k) windows; in x's units
+    converged: bool  # L-BFGS stopped on its tolerances before its iteration limit
+    windows: int | None = None  # the window length, None for the whole trajectory
+    start: np.ndarray | None = None  # (context, k) the fitted starting frames, whole mode only
+
+
+def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Mapping[str, float], *,
+                   integrator: str = "rk4", substeps: int = 1, windows: int | None = None, bend: bool = False,
+                   max_windows: int = MAX_WINDOWS, robust: bool = False,
+                   iterations: int = ITERATIONS) -> TrajectoryFit | None:
+    """The constants of the equation `system` that best follow x (T, k), from `start` (see the
+    module docstring for windows and bend). robust: soft-L1 instead of squares on the residuals
+    (a second pass, scaled by the first pass's robust spread), for a trajectory with outlying
+    frames. None where it cannot be fitted (it leaves the equation's domain, too few frames)."""
+    import torch
+
+    from fitode.codegen import PhysicsBlock
+    from fitode.errors import FitodeError
+
+    xt = torch.as_tensor(np.asarray(x, dtype=np.float64)).reshape(len(x), -1)
+    if not bool(torch.isfinite(xt).all()):
+        return None
+    try:
+        block = PhysicsBlock(system, params, integrator=integrator, substeps=substeps, dtype=torch.float64)
+        block.set_constants({n: float(start[n]) for n in system.learnable})
+        problem = _Problem(block, xt, dt, windows, bend, max_windows)
+        named = [(k, p) for k, p in block.named_parameters() if p.requires_grad] + problem.extra
+        free = [p for _, p in named]
+        converged = _minimise(lambda: torch.mean(problem.residual(dict(named)) ** 2), free, iterations)
+        if robust:
+            r = problem.residual(dict(named)).detach()
+            spread = 1.4826 * float((r - r.median()).abs().median())
+            if spread > 0:
+                converged = _minimise(lambda: torch.mean(_soft_l1(problem.residual(dict(named)), spread)), free,
+                                      iterations)
+        return _summary(block, problem, named, converged, robust)
+    except (FitodeError, RuntimeError, FloatingPointError, ValueError):
+        return None
+
+
+class _Problem:
+    """The residual of one fit as a function of its free tensors, in units of each state's spread."""
+
+    def __init__(self, block, xt, dt: float, windows: int | None, bend: bool, max_windows: int):
+        import torch
+
+        self.block, self.xt, self.dt, self.bend, self.windows = block, xt, float(dt), bend, windows
+        self.models = dict(block.named_parameters())
+        nc, T = block.n_context, xt.shape[0]
+        self.middle = xt.mean(dim=0)
+        self.reach = 1.0 / (xt - self.middle).abs().max().clamp_min(1e-24)  # the largest |c| with the pole outside
+        self.extra = [(PERSPECTIVE, torch.zeros((), dtype=xt.dtype, requires_grad=True))] if bend else []
+        if windows is None:
+            if T < nc + 2:
+                raise ValueError("too few frames for one trajectory")
+            self.extra.append(("start", xt[:nc].clone().requires_grad_(True)))
+            self.index = None
+            self.repeats = 1.0
+        else:
+            n = min(int(windows), T)
+            if n < nc + 1:
+                raise ValueError("windows shorter than the block's context")
+            first = np.arange(T - n + 1)
+            if len(first) > max_windows:
+                first = np.unique(np.round(np.linspace(0, T - n, max_windows)).astype(int))
+            self.index = torch.as_tensor(first[:, None] + np.arange(n)[None, :])
+            covered = len(np.unique(self.index[:, nc:].numpy()))
+            self.repeats = self.index[:, nc:].numel() / max(covered, 1)  # frames counted by several windows
+
+    def bent(self, swapped):
+        if not self.bend:
+            return self.xt
+        import torch
+        c = POLE_MARGIN * self.reach * torch.tanh(swapped[PERSPECTIVE])
+        d = self.xt - self.middle
+        return self.middle + d / (1 + c * d)
+
+    def perspective(self, swapped):
+        import torch
+        return POLE_MARGIN * self.reach * torch.tanh(swapped[PERSPECTIVE])
+
+    def difference(self, swapped):
+        """prediction - target, in the target's units: (T, k) whole, (W, N - context, k) windows."""
+        from torch.func import functional_call
+
+        target = self.bent(swapped)
+        own = {k: v for k, v in swapped.items() if k in self.models}
+        if self.index is None:
+            return functional_call(self.block, own, (swapped["start"][None], target.shape[0], self.dt))[0] - target
+        nc = self.block.n_context
+        xw = target[self.index]
+        return functional_call(self.block, own, (xw[:, :nc], xw.shape[1], self.dt))[:, nc:] - xw[:, nc:]
+
+    def residual(self, swapped):
+        root = (1.0 / self.bent(swapped).var(dim=0).clamp_min(1e-24)).sqrt()  # every state counts equally
+        return (self.difference(swapped) * root).flatten()
+
+
+def _soft_l1(r, spread: float):
+    return 2 * spread ** 2 * ((1 + (r / spread) ** 2).sqrt() - 1)
+
+
+def _minimise(loss, free: list, iterations: int) -> bool:
+    """L-BFGS with a strong-Wolfe line search; True where it stopped before its iteration limit."""
+    import torch
+
+    opt = torch.optim.LBFGS(free, lr=0.5, max_iter=iterations, line_search_fn="strong_wolfe")
+
+    def closure():
+        opt.zero_grad(set_to_none=True)
+        value = loss()
+        value.backward()
+        return value
+    opt.step(closure)
+    used = opt.state[opt._params[0]].get("n_iter", iterations)
+    return used < iterations
+
+
+def _summary(block, problem: _Problem, named: list, converged: bool, robust: bool) -> TrajectoryFit | None:
+    import torch
+
+    sizes = [p.numel() for _, p in named]
+    flat = torch.cat([p.detach().flatten() for _, p in named])
+
+    def residual(v):
+        return problem.residual({k: part.view_as(p) for (k, p), part in zip(named, torch.split(v, sizes))})
+    r = residual(flat).detach()
+    jac = torch.autograd.functional.jacobian(residual, flat, vectorize=True, strategy="forward-mode")
+    if robust:  # the soft-L1 weights, as in iteratively reweighted least squares
+        spread = 1.4826 * float((r - r.median()).abs().median()) or 1.0
+        w = (1 + (r / spread) ** 2) ** -0.25
+        r, jac = r * w, jac * w[:, None]
+    dof = max(r.numel() - flat.numel(), 1)
+    lag = float((r[1:] @ r[:-1]) / (r @ r).clamp_min(1e-300)) if r.numel() > 2 else 0.0
+    lag = min(max(lag, 0.0), 0.95)
+    cov = (torch.linalg.pinv(jac.T @ jac) * float(r @ r) / dof * (1 + lag) / (1 - lag) * problem.repeats)
+    swapped = dict(named)
+    outputs = dict(block.constants())
+    if problem.bend:
+        outputs[PERSPECTIVE] = problem.perspective(swapped)
+    values, errors = {}, {}
+    for name, value in outputs.items():
+        grads = torch.autograd.grad(value, [p for _, p in named], allow_unused=True)
+        g = torch.cat([(gr if gr is not None else torch.zeros_like(p)).flatten() for gr, (_, p) in zip(grads, named)])
+        values[name] = float(value.detach())
+        errors[name] = float((g @ cov @ g).clamp_min(0).sqrt())
+    with torch.no_grad():
+        difference = problem.difference(swapped).double().numpy()
+        misfit = float(torch.mean(problem.residual(swapped) ** 2)) ** 0.5
+    if not all(math.isfinite(v) for v in [*values.values(), *errors.values(), misfit]):
+        return None
+    start = swapped["start"].detach().numpy().copy() if "start" in swapped else None
+    return TrajectoryFit(values, errors, misfit, difference, converged, problem.windows, start)
