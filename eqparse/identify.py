@@ -40,7 +40,8 @@ from __future__ import annotations
 import math
 import re
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from fractions import Fraction
 from typing import Iterable
 
 import numpy as np
@@ -65,6 +66,9 @@ class ConstantReport:
     combination: str | None  # the measurable combination when not separable
     scale: str  # one of SCALES
     reason: str
+    # state -> p: with every state x_s read as a_s * x_s, the equations hold again with this
+    # constant times prod a_s**p (scale_exponents); None where it does not move by a pure power
+    exponents: dict[str, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -192,6 +196,8 @@ def analyse(system: OdeSystem, *, seed: int = _SEED) -> IdentifiabilityReport:
                        f"{_are(pinned_list)} rescaled")
         reports.append(ConstantReport(name, separable[name], combination, scale, sep_text + why))
 
+    exponents = scale_exponents(system, seed=seed)
+    reports = [replace(r, exponents=exponents.get(r.name)) for r in reports]
     notes = []
     if by_nonlinear:
         notes.append(f"the nonlinear terms fix the scale of {_join(sorted(by_nonlinear, key=order))}: at large "
@@ -205,6 +211,62 @@ def analyse(system: OdeSystem, *, seed: int = _SEED) -> IdentifiabilityReport:
                      "the same equation with the rate multiplied by that power, so a nonlinear encoder "
                      "(mlp, cnn) can report any rate; the default encoder (auto) is therefore linear")
     return IdentifiabilityReport(tuple(reports), rank, tuple(notes))
+
+
+def scale_exponents(system: OdeSystem, *, seed: int = _SEED) -> dict[str, dict[str, float] | None]:
+    """The power of each state's scale by which each learnable constant transforms: read every
+    state x_s (and its derivatives) as a_s * x_s, and the equations hold again with each constant
+    c times prod_s a_s**p_s (free fall d'' = g: g -> a*g, p = 1; h' = -k*sqrt(h): p = 1/2;
+    x'' = -w2*x: p = 0). None for a constant that no pure power moves (the pendulum's L under a
+    rescaled angle, a constant tied to an offset) or where the equation cannot be evaluated.
+
+    Infinitesimally (a_s = 1 + da) the condition is linear in the powers, sum_c p_c * c * df_r/dc
+    = [own equation] f_r - sum_k y_k df_r/dy_k over the sampled points; the least-squares powers
+    are rounded to simple fractions and then checked on the finite change (a_s = 0.6 and 1.7),
+    where a power that only holds to first order fails."""
+    model = _Model(system)
+    rng = np.random.default_rng(seed)
+    names = list(system.learnable)
+    out: dict[str, dict[str, float] | None] = {n: {} for n in names}
+    present = [n for n in names if any(f.has(model.p[n]) for f in model.f)]
+    for r_s, s in enumerate(model.states):
+        columns = [[model.p[n] * _diff(f, model.p[n]) for f in model.f] for n in present]
+        own = [(f if r == r_s else sympy.Integer(0)) - sum((y * _diff(f, y) for y in model.y[s]), sympy.Integer(0))
+               for r, f in enumerate(model.f)]
+        m = _stack(model, columns + [own], rng)
+        powers = None
+        if m is not None:
+            p = np.linalg.lstsq(m[:, :-1], m[:, -1], rcond=None)[0] if present else np.zeros(0)
+            powers = [Fraction(float(v)).limit_denominator(12) for v in p]
+            if any(abs(float(q) - v) > 1e-6 for q, v in zip(powers, p)) or \
+                    not _holds_scaled(model, r_s, dict(zip(present, powers)), rng):
+                powers = None
+        for i, n in enumerate(names):
+            if out[n] is None:
+                continue
+            if n not in present:
+                out[n][s] = 0.0
+            elif powers is None:
+                out[n] = None
+            else:
+                out[n][s] = float(powers[present.index(n)])
+    return out
+
+
+def _holds_scaled(model: _Model, r_s: int, powers: dict[str, Fraction], rng) -> bool:
+    """Do the equations hold again, at the sampled points, with state r_s read as a * x and each
+    constant times a**power, for a = 0.6 and a = 1.7?"""
+    s = model.states[r_s]
+    for a in (sympy.Rational(3, 5), sympy.Rational(17, 10)):
+        sub = {y: a * y for y in model.y[s]}
+        sub.update({model.p[n]: model.p[n] * a ** sympy.Rational(q.numerator, q.denominator)
+                    for n, q in powers.items()})
+        gap = [f.xreplace(sub) - (a if r == r_s else 1) * f for r, f in enumerate(model.f)]
+        ref = [f for f in model.f]
+        m = _stack(model, [gap, ref], rng)
+        if m is None or not np.all(np.abs(m[:, 0]) <= 1e-8 * (1 + np.abs(m[:, 1]))):
+            return False
+    return True
 
 
 def power_symmetric(system: OdeSystem) -> bool:

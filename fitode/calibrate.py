@@ -7,13 +7,17 @@ frame rate, as latent.png's time axis shows them), fitode
 1. fits the affine map x = a*z + b from the best run's encoded latent z (a quadratic through
    the frames within three of each time: see local_value) to the known values, by least
    squares, per calibrated state;
-2. re-estimates the equation's constants on the calibrated trajectory x(t): windows of x of the
-   training length, the physics block rolled out from each window's first frames, only the
-   constants learnable (a coarse search over starting points, then Adam, then L-BFGS). This
-   works for any equation, however the constants depend on the scale.
+2. maps each constant through it: reading a state x as a*x, the equation holds again with each
+   constant c times a**p, the power p found from the equation itself
+   (fitode.eqparse.identify.scale_exponents: free fall's g has p = 1, h' = -k*sqrt(h)'s k has
+   p = 1/2, a frequency p = 0). For an equation linear in its state that is exact, so the
+   calibrated constant is the latent one times the map's scale, whatever a fit would say;
+3. checks it: the calibrated trajectory is fitted again (fitode.train.trajectory, windows of the
+   training length, from the mapped values). Where the fit and the mapping disagree by more than
+   max(AGREE, SIGMAS standard errors), that is a finding naming both numbers, not a silent change.
 
-Constants the analysis calls scale-free (a decay rate, a frequency) keep their estimate; their
-re-fit value is reported as a check and should agree. Every other constant is converted.
+Constants with no pure power (the pendulum's L under a rescaled angle) or whose equation is not
+free of the map's offset take the fitted value instead (from a search over powers of the scale).
 """
 from __future__ import annotations
 
@@ -160,7 +164,9 @@ class Calibration:
 
     points: list[CalibrationPoint]
     maps: dict[str, AffineMap]
-    constants: dict[str, dict[str, Any]]  # name -> before, after, std_after, change, converted, scale, refit
+    # name -> before, after, std_after, change, converted, scale; mapped (None without a pure
+    # power), refit and refit_std (the fit of the calibrated trajectory), best_run_before
+    constants: dict[str, dict[str, Any]]
     latent: np.ndarray  # (T, d) calibrated latent (uncalibrated states unchanged)
     rollout: np.ndarray  # (T, d) physics rollout with the converted constants
     loss: float
@@ -180,7 +186,9 @@ class Calibration:
     def findings(self, params: Mapping[str, Any]):
         """Verdict findings: a calibrated constant outside the bounds its equation file declares
         (g < 0 for a fall) is not a physical answer. Two calibration points fix the map exactly, so
-        they cannot reveal a bad fit themselves; the bounds can."""
+        they cannot reveal a bad fit themselves; the bounds can. And a constant whose fit on the
+        calibrated trajectory disagrees with the latent value mapped through the calibration is
+        ambiguous: the latent does not follow the calibrated state as the equation says."""
         from fitode.train.verdict import Finding
         out = []
         for name in self.converted_names():
@@ -190,6 +198,13 @@ class Calibration:
                 out.append(Finding("not trustworthy", f"calibrated {name} = {v:.4g} lies outside its bounds "
                                    f"({'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}): "
                                    "the latent does not follow the calibrated state"))
+        for name, c in self.constants.items():
+            if disagree(c):
+                out.append(Finding("ambiguous", f"calibrated {name}: the latent value mapped through the calibration "
+                                   f"gives {c['mapped_best']:.6g}, but a fit of the calibrated trajectory gives "
+                                   f"{c['refit']:.6g} +- {c['refit_std']:.2g} ({_change(c['refit'], c['mapped_best'])}): "
+                                   "the latent does not follow the calibrated state as the equation says (check "
+                                   "the calibration's times and values, and the map's offset)", (name,)))
         return out
 
     def lines(self) -> list[str]:
@@ -198,8 +213,10 @@ class Calibration:
                                             for s, m in self.maps.items())]
         for name, c in self.constants.items():
             if c["converted"]:
+                how = "mapped" if c["mapped"] is not None else "fitted"
                 out.append(f"  {name}: {c['before']:.6g} (latent units) -> {c['after']:.6g} (calibrated, "
-                           f"x{_ratio(c['after'], c['before'])})")
+                           f"x{_ratio(c['after'], c['before'])}, {how}; a fit of the calibrated trajectory gives "
+                           f"{c['refit']:.6g})")
             else:
                 out.append(f"  {name}: {c['before']:.6g} kept (scale-free); check: re-fitting the best run's "
                            f"calibrated trajectory moves it {c['best_run_before']:.6g} -> {c['refit']:.6g} "
@@ -213,8 +230,9 @@ class Calibration:
             "maps": {s: {"a": m.a, "b": m.b, "n_points": m.n_points, "rms": m.rms} for s, m in self.maps.items()},
             "constants": self.constants,
             "refit_loss": self.loss,
-            "method": "affine map x = a*z + b by least squares; constants re-fitted to windows of x(t) "
-                      "with the physics block (scale-free constants kept, their re-fit reported)",
+            "method": "affine map x = a*z + b by least squares; each constant mapped by the power of the "
+                      "scale under which the equation holds again (fitted to windows of x(t) where no pure "
+                      "power exists), and checked by a fit of the calibrated trajectory",
             "notes": self.notes,
         }
 
@@ -227,6 +245,19 @@ def _change(after: float, before: float) -> str:
     if before == 0:
         return f"{after - before:+.3g}"
     return f"{100 * (after - before) / abs(before):+.2f}%"
+
+
+AGREE = 0.01  # a fit of the calibrated trajectory within this of the mapped value agrees with it
+SIGMAS = 3.0  # ... or within this many of its standard errors
+OFFSET_TOL = 1e-3  # a map's offset this small, relative to the calibrated range, changes no constant
+
+
+def disagree(c: Mapping[str, Any]) -> bool:
+    """Does the fit of the calibrated trajectory disagree with the mapped latent value?"""
+    mapped, refit = c.get("mapped_best"), c.get("refit")
+    if mapped is None or refit is None or not math.isfinite(refit):
+        return False
+    return abs(refit - mapped) > max(AGREE * abs(mapped), SIGMAS * c.get("refit_std", 0.0))
 
 
 def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence[CalibrationPoint],
@@ -245,31 +276,95 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
         col = result.states.index(s)
         x[:, col] = m.a * latent[:, col] + m.b
     best = next(r for r in result.runs if r.index == result.best).final
-    scale = math.exp(np.mean([math.log(abs(m.a)) for m in maps.values()]))
-    flip = any(m.a < 0 for m in maps.values())
     settings = result.settings
+    options = {"integrator": str(settings.get("integrator", "rk4")), "substeps": int(settings.get("substeps", 1)),
+               "windows": int(settings.get("window", 20))}
+    factors = map_factors(system, maps, x, result.states)
     scales = {n: _scale(analysis, n) for n in system.learnable}
-    refit, loss = refit_constants(
-        system, params, x[: result.train_frames], result.dt, start=best, scale=scale, flip=flip,
-        scale_free=[n for n, s in scales.items() if s == "free"], window=int(settings.get("window", 20)),
-        integrator=str(settings.get("integrator", "rk4")), substeps=int(settings.get("substeps", 1)), seed=seed)
+    mapped_best = {n: best[n] * f for n, f in factors.items() if f is not None}
+    fitted = _refit(system, params, x[: result.train_frames], result.dt, best, mapped_best, maps, options, seed)
+    if fitted is None and len(mapped_best) < len(factors):
+        raise CalibrationError("the equation cannot reproduce the calibrated trajectory from any starting point "
+                               "(it leaves the equation's domain); check the calibration values")
     constants: dict[str, dict[str, Any]] = {}
     notes: list[str] = []
+    if fitted is None:
+        notes.append("the calibrated trajectory could not be fitted again, so the mapped constants are unchecked")
     for name in system.learnable:
-        est = result.parameters[name]
-        converted = scales[name] != "free"
-        after = refit[name] if converted else est.value
+        est, factor = result.parameters[name], factors[name]
         ref = best.get(name, est.value)
-        std_after = est.std * abs(refit[name] / ref) if converted and ref else est.std
-        constants[name] = {"before": est.value, "after": after, "std_after": std_after, "refit": refit[name],
+        refit = fitted.values[name] if fitted is not None else math.nan
+        converted = scales[name] != "free" if scales[name] else not (factor is not None and factor == 1.0)
+        if not converted:
+            after, ratio = est.value, 1.0
+        elif factor is not None:
+            after, ratio = est.value * factor, factor
+        else:
+            after, ratio = refit, (refit / ref if ref else math.nan)
+        constants[name] = {"before": est.value, "after": after, "std_after": est.std * abs(ratio),
+                           "mapped": None if factor is None else est.value * factor,
+                           "mapped_best": mapped_best.get(name), "refit": refit,
+                           "refit_std": fitted.errors[name] if fitted is not None else math.nan,
                            "best_run_before": ref, "converted": converted, "scale": scales[name],
                            "change": _rel(after, est.value)}
-        if not converted and abs(_rel(refit[name], ref)) > 0.05:
-            notes.append(f"{name} is scale-free but its re-fit on the calibrated trajectory moved "
-                         f"{_change(refit[name], ref)}: the calibration points may not match the latent "
-                         "(check the times and values)")
-    rollout = _rollout(system, params, x, result.dt, refit, settings)
+    best_after = {n: mapped_best.get(n, fitted.values[n] if fitted is not None else best[n]) for n in system.learnable}
+    rollout = _rollout(system, params, x, result.dt, best_after, settings)
+    loss = fitted.misfit ** 2 if fitted is not None else math.nan
     return Calibration(list(points), maps, constants, x, rollout, loss, time_offset, notes)
+
+
+def map_factors(system, maps: Mapping[str, AffineMap], x: np.ndarray, states: Sequence[str]) -> dict[str, float | None]:
+    """What each constant is multiplied by when the latent is read through the maps: prod a**p
+    over the calibrated states (scale_exponents' powers p; a negative a keeps its sign for an odd
+    power). None where no pure power exists, where a negative scale meets a fractional power, or
+    where the map's offset is not negligible for a state whose equation reads its value (then
+    the offset moves constants too, and only a fit can tell)."""
+
+    from fitode.eqparse.identify import scale_exponents
+    from fitode.eqparse.system import deriv_symbol
+
+    powers = scale_exponents(system)
+    factors: dict[str, float | None] = {}
+    for name in system.learnable:
+        exps = powers.get(name)
+        factor: float | None = 1.0
+        for s, m in maps.items():
+            p = None if exps is None else exps.get(s, 0.0)
+            if p == 0.0:
+                continue
+            reads = any(rhs.has(deriv_symbol(s, 0)) for rhs in system.rhs.values())
+            col = x[:, list(states).index(s)]
+            offset_free = not reads or abs(m.b) <= OFFSET_TOL * max(float(np.max(np.abs(col))), 1e-300)
+            if p is None or not offset_free or (m.a < 0 and p != int(p)):
+                factor = None
+                break
+            factor *= abs(m.a) ** p * (-1.0 if m.a < 0 and int(p) % 2 else 1.0)
+        factors[name] = factor
+    return factors
+
+
+def _refit(system, params, x: np.ndarray, dt: float, best: Mapping[str, float], mapped: Mapping[str, float],
+           maps: Mapping[str, AffineMap], options: Mapping[str, Any], seed: int):
+    """The fit of the calibrated trajectory (fitode.train.trajectory, windows), from the mapped
+    values; a constant with no mapping starts from the best of a search over powers of the
+    maps' scale (and signs, for a map that flips), and the fit is kept from the best two."""
+    from fitode.train.trajectory import fit_trajectory, trajectory_misfit
+
+    names = [n for n in system.learnable if n not in mapped]
+    scale = math.exp(np.mean([math.log(abs(m.a)) for m in maps.values()]))
+    signs = [1.0, -1.0] if any(m.a < 0 for m in maps.values()) else [1.0]
+    powers = [-2.0, -1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0]
+    combos = list(itertools.product(*[[s * scale ** p for p in powers for s in signs] for _ in names]))
+    if len(combos) > 600:  # many constants without a mapping: a seeded sample of the grid
+        rng = np.random.default_rng(seed)
+        keep = rng.choice(len(combos), 599, replace=False)
+        combos = [tuple(1.0 for _ in names)] + [combos[i] for i in keep]
+    starts = [{**dict(mapped), **{n: float(best[n]) * m for n, m in zip(names, combo)}} for combo in combos]
+    if len(starts) > 1:
+        scored = sorted(((trajectory_misfit(system, params, x, dt, v, **options), i) for i, v in enumerate(starts)))
+        starts = [starts[i] for v, i in scored[:2] if math.isfinite(v)]
+    fits = [f for f in (fit_trajectory(system, params, x, dt, v, **options) for v in starts) if f is not None]
+    return min(fits, key=lambda f: f.misfit) if fits else None
 
 
 def _rel(after: float, before: float) -> float:
@@ -282,158 +377,17 @@ def _scale(analysis, name: str) -> str | None:
     return (analysis.get("constants", {}).get(name) or {}).get("scale")
 
 
-# ----------------------------------------------------------------------------- the trajectory fit
-def refit_constants(system, params: Mapping[str, Any], x: np.ndarray, dt: float, *, start: Mapping[str, float],
-                    scale: float = 1.0, flip: bool = False, scale_free: Sequence[str] = (), window: int = 20,
-                    integrator: str = "rk4", substeps: int = 1, steps: int = 150, max_windows: int = 128,
-                    seed: int = 0) -> tuple[dict[str, float], float]:
-    """Fit the learnable constants so the physics block, rolled out from each window's first
-    frames of x (T, d), reproduces the rest of the window. Returns (constants, loss).
-
-    Starting points: `start` with every constant not in scale_free multiplied by scale**p for p in
-    -2..2 (and by -1 too when flip: a negative map can flip signs); the best few by loss are refined.
-    """
-    import torch
-
-    torch.manual_seed(seed)
-    make, loss_of, evaluate = _window_problem(system, params, x, dt, window, integrator, substeps, max_windows)
-    names = list(system.learnable)
-    powers = [-2.0, -1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0]
-    signs = [1.0, -1.0] if flip else [1.0]
-    choices = [[1.0] if n in scale_free else [s * scale ** p for p in powers for s in signs] for n in names]
-    combos = list(itertools.product(*choices))
-    if len(combos) > 600:  # many scale-dependent constants: a seeded sample of the grid
-        rng = np.random.default_rng(seed)
-        keep = rng.choice(len(combos), 599, replace=False)
-        combos = [tuple(1.0 for _ in names)] + [combos[i] for i in keep]
-    scored = []
-    for combo in combos:
-        cand = {n: float(start[n]) * m for n, m in zip(names, combo)}
-        scored.append((evaluate(cand), cand))
-    scored.sort(key=lambda s: s[0])
-    finite = [c for v, c in scored if math.isfinite(v)]
-    if not finite:
-        raise CalibrationError("the equation cannot reproduce the calibrated trajectory from any starting point "
-                               "(it leaves the equation's domain); check the calibration values")
-    best_vals, best_loss = None, math.inf
-    for cand in finite[:2]:
-        vals, loss = _refine(make(cand), loss_of, steps)
-        if loss < best_loss:
-            best_vals, best_loss = vals, loss
-    if best_vals is None:
-        raise CalibrationError("the re-fit of the constants on the calibrated trajectory did not converge")
-    return best_vals, best_loss
-
-
-def window_loss(system, params: Mapping[str, Any], x: np.ndarray, dt: float, values: Mapping[str, float], *,
-                window: int = 20, integrator: str = "rk4", substeps: int = 1, max_windows: int = 128) -> float:
-    """The loss refit_constants minimises, for the given constants (inf outside their domain)."""
-    return _window_problem(system, params, x, dt, window, integrator, substeps, max_windows)[2](values)
-
-
-def _window_problem(system, params, x: np.ndarray, dt: float, window: int, integrator: str, substeps: int,
-                    max_windows: int):
-    """(make, loss_of, evaluate) for fitting constants to windows of the trajectory x (T, d): the
-    physics block rolled out from each window's first frames reproduces the rest of the window."""
-    import torch
-
-    from fitode.codegen import PhysicsBlock
-
-    xt = torch.as_tensor(np.asarray(x, dtype=np.float64), dtype=torch.float32)
-    T = xt.shape[0]
-    window = min(window, T)
-    n_win = T - window + 1
-    if n_win < 1:
-        raise CalibrationError("too few frames to re-fit the constants on the calibrated trajectory")
-    starts = torch.arange(n_win)
-    if n_win > max_windows:
-        starts = torch.linspace(0, n_win - 1, max_windows).round().long().unique()
-    idx = starts[:, None] + torch.arange(window)[None, :]
-    xw = xt[idx]  # (B, L, d)
-    weight = 1.0 / xt.var(dim=0).clamp_min(1e-12)  # every state counts equally, whatever its units
-
-    def make(values: Mapping[str, float]) -> PhysicsBlock | None:
-        block = PhysicsBlock(system, params, integrator=integrator, substeps=substeps)
-        try:
-            block.set_constants(dict(values))
-        except FitodeError:
-            return None
-        return block
-
-    def loss_of(block) -> torch.Tensor:
-        nc = block.n_context
-        pred = block(xw[:, :nc], window, dt)
-        return torch.mean(((pred[:, nc:] - xw[:, nc:]) ** 2) * weight)
-
-    def evaluate(values: Mapping[str, float]) -> float:
-        block = make(values)
-        if block is None:
-            return math.inf
-        try:
-            with torch.no_grad():
-                v = float(loss_of(block))
-        except (FitodeError, RuntimeError, FloatingPointError):
-            return math.inf
-        return v if math.isfinite(v) else math.inf
-
-    return make, loss_of, evaluate
-
-
-def _refine(block, loss_of, steps: int) -> tuple[dict[str, float] | None, float]:
-    import torch
-
-    params = [p for p in block.parameters() if p.requires_grad]
-    opt = torch.optim.Adam(block.param_groups(lr=0.05))
-    best_loss, best_vals = math.inf, None
-
-    def snapshot(loss: float):
-        nonlocal best_loss, best_vals
-        if math.isfinite(loss) and loss < best_loss:
-            best_loss, best_vals = loss, {k: float(v.detach()) for k, v in block.constants().items()}
-
-    for i in range(steps):
-        try:
-            loss = loss_of(block)
-        except (FitodeError, RuntimeError, FloatingPointError):
-            break
-        if not torch.isfinite(loss):
-            break
-        snapshot(float(loss.detach()))
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        if i == steps // 2:
-            for g in opt.param_groups:
-                g["lr"] *= 0.1
-    if best_vals is not None:  # polish: the loss is smooth in a few constants, L-BFGS lands on the minimum
-        block.set_constants(best_vals)
-        lbfgs = torch.optim.LBFGS(params, lr=0.5, max_iter=50, line_search_fn="strong_wolfe")
-
-        def closure():
-            lbfgs.zero_grad(set_to_none=True)
-            value = loss_of(block)
-            value.backward()
-            return value
-        try:
-            lbfgs.step(closure)
-            with torch.no_grad():
-                snapshot(float(loss_of(block)))
-        except (FitodeError, RuntimeError, FloatingPointError):
-            pass
-    return best_vals, best_loss
-
-
 def _rollout(system, params, x: np.ndarray, dt: float, values: Mapping[str, float], settings) -> np.ndarray:
     import torch
 
     from fitode.codegen import PhysicsBlock
     block = PhysicsBlock(system, params, integrator=str(settings.get("integrator", "rk4")),
-                         substeps=int(settings.get("substeps", 1)))
-    block.set_constants(dict(values))
-    xt = torch.as_tensor(np.asarray(x), dtype=torch.float32)
+                         substeps=int(settings.get("substeps", 1)), dtype=torch.float64)
+    xt = torch.as_tensor(np.asarray(x, dtype=np.float64))
     try:
+        block.set_constants(dict(values))
         with torch.no_grad():
             r = block(xt[None, : block.n_context], xt.shape[0], dt)[0]
-        return r.double().numpy()
+        return r.numpy()
     except FitodeError:
         return np.full_like(np.asarray(x, dtype=float), np.nan)

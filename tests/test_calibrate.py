@@ -140,3 +140,61 @@ def test_without_analysis_every_constant_is_refitted():
     cal = calibrate_result(res, system, {}, pts, None)
     assert cal.maps["y"].a == pytest.approx(-3.0, rel=1e-3)
     assert cal.constants["a"]["after"] == pytest.approx(9.81, rel=0.01)
+
+
+# ----------------------------------------------------------------------------- the sliding block
+FPS, ACCEL = 240.0, 885.0  # a block on an incline, filmed at 240 fps, tracked in pixels (px/s^2)
+WINDOW = 40  # frames: at 240 fps, 20 frames see 3 px of the acceleration, under a starting velocity's noise
+
+
+def _slide(n: int = 160, noise: float = 0.1, seed: int = 1):
+    """The block's position along its path in pixels, x'' = ACCEL from a slow start, with a
+    tracker's noise; and the time of each frame."""
+    t = np.arange(n) / FPS
+    x = 120.0 + 15.0 * t + ACCEL / 2 * t**2
+    return t, x + noise * np.random.default_rng(seed).standard_normal(n)
+
+
+def _block_case():
+    from fitode.train.trajectory import fit_trajectory
+    system = parse("x'' = a")
+    t, x = _slide()
+    z = (x - x.mean()) / x.std()  # the latent an encoder reads: the path at its own scale and offset
+    windows = fit_trajectory(system, {}, z[:, None], 1 / FPS, {"a": 1.0}, windows=WINDOW)
+    whole = fit_trajectory(system, {}, x[:, None], 1 / FPS, {"a": 100.0})
+    res = fake_result(system, t, z, {"a": windows.values["a"]}, std={"a": 0.01})
+    res.settings["window"] = WINDOW
+    pts = parse_calibration(f"x({t[5]})={x[5]}; x({t[150]})={x[150]}", ["x"])
+    return system, res, pts, windows, whole
+
+
+def test_the_sliding_block_gives_one_constant_from_the_windows_the_whole_clip_and_the_calibration():
+    system, res, pts, windows, whole = _block_case()
+    cal = calibrate_result(res, system, {}, pts, analysis(a="dependent"))
+    c, m = cal.constants["a"], cal.maps["x"]
+    from_windows = windows.values["a"] * m.a  # the windows' own value mapped by the calibration's scale
+    for value in (whole.values["a"], c["after"], c["refit"]):
+        assert value == pytest.approx(from_windows, rel=0.01)
+    assert from_windows == pytest.approx(ACCEL, rel=0.03)
+    assert not cal.findings({})
+
+
+def test_the_calibration_does_not_move_a_constant_of_an_equation_linear_in_its_state():
+    system, res, pts, _, _ = _block_case()
+    cal = calibrate_result(res, system, {}, pts, analysis(a="dependent"))
+    c = cal.constants["a"]
+    assert c["converted"] and c["mapped"] is not None
+    assert c["after"] == pytest.approx(c["before"] * cal.maps["x"].a, rel=1e-12)  # exactly the map, never a refit
+    assert c["std_after"] == pytest.approx(0.01 * abs(cal.maps["x"].a), rel=1e-12)
+
+
+def test_a_latent_constant_the_calibrated_trajectory_does_not_bear_out_is_a_finding_not_a_change():
+    system, res, pts, windows, _ = _block_case()
+    res.parameters["a"] = res.parameters["a"].__class__(windows.values["a"] * 0.8, 0.01, 3)
+    res.runs[0].final["a"] = windows.values["a"] * 0.8  # a latent constant 20% off its own trajectory
+    cal = calibrate_result(res, system, {}, pts, analysis(a="dependent"))
+    c = cal.constants["a"]
+    assert c["after"] == pytest.approx(c["before"] * cal.maps["x"].a, rel=1e-12)
+    found = cal.findings({})
+    assert len(found) == 1 and found[0].level == "ambiguous" and found[0].names == ("a",)
+    assert f"{c['mapped_best']:.6g}" in found[0].reason and f"{c['refit']:.6g}" in found[0].reason

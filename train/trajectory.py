@@ -15,8 +15,8 @@ line search. Two ways to cut it:
 Every state counts equally, whatever its units: each column's residual is divided by that
 column's spread. The errors come from the Jacobian (least squares' covariance, the Jacobian taken
 forward-mode), widened for residuals that hang together from frame to frame (by (1 + r) / (1 - r)
-for a lag-one correlation r) and, for windows, for the frames that several overlapping windows
-count again.
+for a lag-one correlation r; in windows, the error of each window's starting state makes its
+residuals hang together, so their errors are wide).
 
 bend: x is first read through a perspective (one-dimensional homography) about its middle m,
 x -> m + (x - m) / (1 + c (x - m)), with c fitted too (kept so that the pole stays outside the
@@ -71,15 +71,15 @@ def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Map
         block.set_constants({n: float(start[n]) for n in system.learnable})
         problem = _Problem(block, xt, dt, windows, bend, max_windows)
         named = [(k, p) for k, p in block.named_parameters() if p.requires_grad] + problem.extra
-        free = [p for _, p in named]
-        converged = _minimise(lambda: torch.mean(problem.residual(dict(named)) ** 2), free, iterations)
+        scales = problem.scales(named)
+        converged = _minimise(lambda values: torch.mean(problem.residual(values) ** 2), named, scales, iterations)
         if robust:
             r = problem.residual(dict(named)).detach()
             spread = 1.4826 * float((r - r.median()).abs().median())
             if spread > 0:
-                converged = _minimise(lambda: torch.mean(_soft_l1(problem.residual(dict(named)), spread)), free,
-                                      iterations)
-        return _summary(block, problem, named, converged, robust)
+                converged = _minimise(lambda values: torch.mean(_soft_l1(problem.residual(values), spread)), named,
+                                      scales, iterations)
+        return _summary(block, problem, named, scales, converged, robust)
     except (FitodeError, RuntimeError, FloatingPointError, ValueError):
         return None
 
@@ -101,7 +101,6 @@ class _Problem:
                 raise ValueError("too few frames for one trajectory")
             self.extra.append(("start", xt[:nc].clone().requires_grad_(True)))
             self.index = None
-            self.repeats = 1.0
         else:
             n = min(int(windows), T)
             if n < nc + 1:
@@ -110,8 +109,22 @@ class _Problem:
             if len(first) > max_windows:
                 first = np.unique(np.round(np.linspace(0, T - n, max_windows)).astype(int))
             self.index = torch.as_tensor(first[:, None] + np.arange(n)[None, :])
-            covered = len(np.unique(self.index[:, nc:].numpy()))
-            self.repeats = self.index[:, nc:].numel() / max(covered, 1)  # frames counted by several windows
+
+    def scales(self, named: list) -> list:
+        """The size of a step in each free tensor that matters: the starting frames move on each
+        state's spread, a constant on its own magnitude. L-BFGS steps in these units, so that a
+        constant of 900 px/s^2 and frames of a few hundred pixels are equally easy to move."""
+        import torch
+        spread = self.xt.std(dim=0).clamp_min(1e-12)
+        out = []
+        for k, p in named:
+            if k == "start":
+                out.append(spread.expand_as(p).clone())
+            elif k == PERSPECTIVE:
+                out.append(torch.ones_like(p))
+            else:
+                out.append(p.detach().abs().clamp_min(1e-3))
+        return out
 
     def bent(self, swapped):
         if not self.bend:
@@ -146,27 +159,42 @@ def _soft_l1(r, spread: float):
     return 2 * spread ** 2 * ((1 + (r / spread) ** 2).sqrt() - 1)
 
 
-def _minimise(loss, free: list, iterations: int) -> bool:
-    """L-BFGS with a strong-Wolfe line search; True where it stopped before its iteration limit."""
+def _minimise(loss, named: list, scales: list, iterations: int) -> bool:
+    """L-BFGS with a strong-Wolfe line search in the scaled steps u (value = start + scale * u),
+    on the loss relative to its start; the named tensors end at the minimum. True where it
+    stopped on its tolerances before its iteration limit."""
     import torch
 
-    opt = torch.optim.LBFGS(free, lr=0.5, max_iter=iterations, line_search_fn="strong_wolfe")
+    origin = [p.detach().clone() for _, p in named]
+    steps = [torch.zeros_like(p, requires_grad=True) for _, p in named]
+
+    def values():
+        return {k: o + s * u for (k, _), o, s, u in zip(named, origin, scales, steps)}
+    with torch.no_grad():
+        first = float(loss(values()))
+    norm = first if math.isfinite(first) and first > 0 else 1.0
+    opt = torch.optim.LBFGS(steps, lr=1.0, max_iter=iterations, tolerance_grad=1e-12, tolerance_change=1e-15,
+                            line_search_fn="strong_wolfe")
 
     def closure():
         opt.zero_grad(set_to_none=True)
-        value = loss()
+        value = loss(values()) / norm
         value.backward()
         return value
     opt.step(closure)
-    used = opt.state[opt._params[0]].get("n_iter", iterations)
-    return used < iterations
+    with torch.no_grad():
+        for (_, p), v in zip(named, values().values()):
+            p.copy_(v)
+    return opt.state[opt._params[0]].get("n_iter", iterations) < iterations
 
 
-def _summary(block, problem: _Problem, named: list, converged: bool, robust: bool) -> TrajectoryFit | None:
+def _summary(block, problem: _Problem, named: list, scales: list, converged: bool,
+             robust: bool) -> TrajectoryFit | None:
     import torch
 
     sizes = [p.numel() for _, p in named]
     flat = torch.cat([p.detach().flatten() for _, p in named])
+    scale = torch.cat([s.flatten() for s in scales])
 
     def residual(v):
         return problem.residual({k: part.view_as(p) for (k, p), part in zip(named, torch.split(v, sizes))})
@@ -179,7 +207,9 @@ def _summary(block, problem: _Problem, named: list, converged: bool, robust: boo
     dof = max(r.numel() - flat.numel(), 1)
     lag = float((r[1:] @ r[:-1]) / (r @ r).clamp_min(1e-300)) if r.numel() > 2 else 0.0
     lag = min(max(lag, 0.0), 0.95)
-    cov = (torch.linalg.pinv(jac.T @ jac) * float(r @ r) / dof * (1 + lag) / (1 - lag) * problem.repeats)
+    scaled = jac * scale  # in the scaled steps, where the normal matrix is well conditioned
+    cov = scale[:, None] * torch.linalg.pinv(scaled.T @ scaled) * scale[None, :] * float(r @ r) / dof \
+        * (1 + lag) / (1 - lag)
     swapped = dict(named)
     outputs = dict(block.constants())
     if problem.bend:
@@ -197,3 +227,26 @@ def _summary(block, problem: _Problem, named: list, converged: bool, robust: boo
         return None
     start = swapped["start"].detach().numpy().copy() if "start" in swapped else None
     return TrajectoryFit(values, errors, misfit, difference, converged, problem.windows, start)
+
+
+def trajectory_misfit(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping[str, float], *,
+                      integrator: str = "rk4", substeps: int = 1, windows: int | None = None,
+                      max_windows: int = MAX_WINDOWS) -> float:
+    """The misfit fit_trajectory would start from with these constants, the whole trajectory
+    starting from x's own first frames (inf where the equation cannot be rolled out): a cheap
+    score to choose among starting points."""
+    import torch
+
+    from fitode.codegen import PhysicsBlock
+    from fitode.errors import FitodeError
+
+    xt = torch.as_tensor(np.asarray(x, dtype=np.float64)).reshape(len(x), -1)
+    try:
+        block = PhysicsBlock(system, params, integrator=integrator, substeps=substeps, dtype=torch.float64)
+        block.set_constants({n: float(values[n]) for n in system.learnable})
+        problem = _Problem(block, xt, dt, windows, False, max_windows)
+        with torch.no_grad():
+            value = float(torch.mean(problem.residual(dict(problem.extra) | dict(block.named_parameters())) ** 2))
+    except (FitodeError, RuntimeError, FloatingPointError, ValueError):
+        return math.inf
+    return value ** 0.5 if math.isfinite(value) else math.inf
