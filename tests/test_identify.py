@@ -140,3 +140,17 @@ def test_linear_first_order_equation_warns_about_nonlinear_encoders():
         assert any("nonlinear encoder" in n and "linear" in n for n in report(text).notes), text
     for text in ("h' = -k*sqrt(h)", "z'' + g1*z' + g0*z = 0", "x' = r*x*(1 - x/K)"):
         assert not any("nonlinear encoder" in n for n in report(text).notes), text
+
+
+@pytest.mark.parametrize("text, free, expected", [
+    ("d'' = g", ["g"], {"g": {"d": 1.0}}),
+    ("h' = -k*sqrt(h)", None, {"k": {"h": 0.5}}),
+    ("x'' = -w2*x", None, {"w2": {"x": 0.0}}),
+    ("x' = a*x + b*x^2", None, {"a": {"x": 0.0}, "b": {"x": -1.0}}),
+    ("theta'' = -g/L*sin(theta)", None, {"L": None}),  # the angle's scale is no power of anything
+])
+def test_the_power_of_the_scale_each_constant_moves_by(text, free, expected):
+    from fitode.eqparse.identify import scale_exponents
+    system = parse(text, free=free) if free else parse(text)
+    assert scale_exponents(system) == expected
+    assert {c.name: c.exponents for c in analyse(system).constants} == expected

@@ -1,0 +1,74 @@
+"""The one trajectory fitter: constants (and starting state) to a fixed trajectory, whole or in
+windows, with standard errors; any number of states."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fitode.eqparse import parse
+from fitode.train.trajectory import fit_trajectory, trajectory_misfit
+
+from test_consistency import _fall
+
+
+def _damped(n: int = 240, dt: float = 0.05, w2: float = 4.0, c: float = 0.3, noise: float = 0.0, seed: int = 0):
+    """x' = v, v' = -w2*x - c*v from (1, 0), fine RK4 steps: both states measured, (n, 2)."""
+    def f(y):
+        return np.array([y[1], -w2 * y[0] - c * y[1]])
+    y, out, h = np.array([1.0, 0.0]), [], dt / 20
+    for _ in range(n):
+        out.append(y.copy())
+        for _ in range(20):
+            k1 = f(y)
+            k2 = f(y + h / 2 * k1)
+            k3 = f(y + h / 2 * k2)
+            k4 = f(y + h * k3)
+            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return np.array(out) + noise * np.random.default_rng(seed).standard_normal((n, 2))
+
+
+def test_two_measured_states_give_both_constants_with_errors():
+    system = parse("x' = v; v' = -w2*x - c*v")
+    x = _damped(noise=0.003)
+    for windows in (None, 30):
+        fitted = fit_trajectory(system, {}, x, 0.05, {"w2": 3.0, "c": 0.5}, windows=windows)
+        assert fitted is not None and fitted.residuals.shape[-1] == 2
+        assert fitted.values["w2"] == pytest.approx(4.0, rel=0.01)
+        assert fitted.values["c"] == pytest.approx(0.3, rel=0.05)
+        assert 0 < fitted.errors["c"] < 0.05 and abs(fitted.values["c"] - 0.3) < 4 * fitted.errors["c"]
+
+
+def test_windows_and_the_whole_trajectory_agree_on_clean_data():
+    system = parse("d'' = g", free=["g"])
+    x = _fall(0.0, noise=0.0)
+    whole = fit_trajectory(system, {}, x, 1 / 120, {"g": 5.0})
+    windows = fit_trajectory(system, {}, x, 1 / 120, {"g": 5.0}, windows=20)
+    assert whole.converged and windows.windows == 20 and whole.start.shape[1] == 1
+    assert whole.values["g"] == pytest.approx(9.81, rel=1e-3)
+    assert windows.values["g"] == pytest.approx(whole.values["g"], rel=2e-3)
+    assert whole.misfit < 1e-4 and windows.misfit < 1e-4
+
+
+def test_a_windows_fit_is_the_same_on_an_affine_image_of_the_trajectory():
+    # the calibration's premise: the windows' constant of x'' = a moves exactly by the map's scale
+    system = parse("x'' = a")
+    x = _fall(0.0, noise=0.002)
+    z = fit_trajectory(system, {}, x, 1 / 120, {"a": 5.0}, windows=20)
+    image = fit_trajectory(system, {}, 250.0 * x - 40.0, 1 / 120, {"a": 5.0}, windows=20)
+    assert image.values["a"] == pytest.approx(250.0 * z.values["a"], rel=1e-6)
+
+
+def test_soft_l1_keeps_a_few_outlying_frames_from_moving_the_constant():
+    system = parse("d'' = g", free=["g"])
+    x = _fall(0.0, noise=0.001)
+    x[[20, 45, 60]] += 0.05  # three frames where a tracker jumped to something else
+    plain = fit_trajectory(system, {}, x, 1 / 120, {"g": 9.0})
+    robust = fit_trajectory(system, {}, x, 1 / 120, {"g": 9.0}, robust=True)
+    assert abs(robust.values["g"] - 9.81) < abs(plain.values["g"] - 9.81) / 2
+
+
+def test_a_trajectory_outside_the_equations_domain_cannot_be_fitted():
+    system = parse("h' = -k*sqrt(h)")
+    x = -np.linspace(1.0, 2.0, 40)[:, None]  # negative heights: sqrt(h) is not real
+    assert fit_trajectory(system, {}, x, 0.1, {"k": 0.1}) is None
+    assert trajectory_misfit(system, {}, x, 0.1, {"k": 0.1}) == float("inf")
