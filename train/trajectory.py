@@ -48,16 +48,20 @@ class TrajectoryFit:
     converged: bool  # L-BFGS stopped on its tolerances before its iteration limit
     windows: int | None = None  # the window length, None for the whole trajectory
     start: np.ndarray | None = None  # (context, k) the fitted starting frames, whole mode only
+    gauge: dict[str, dict[str, float]] | None = None  # state -> scale, offset: the state is scale * x + offset
 
 
 def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Mapping[str, float], *,
                    integrator: str = "rk4", substeps: int = 1, windows: int | None = None, bend: bool = False,
-                   max_windows: int = MAX_WINDOWS, robust: bool = False,
-                   iterations: int = ITERATIONS) -> TrajectoryFit | None:
+                   max_windows: int = MAX_WINDOWS, robust: bool = False, iterations: int = ITERATIONS,
+                   gauge: Mapping | None = None) -> TrajectoryFit | None:
     """The constants of the equation `system` that best follow x (T, k), from `start` (see the
     module docstring for windows and bend). robust: soft-L1 instead of squares on the residuals
     (a second pass, scaled by the first pass's robust spread), for a trajectory with outlying
-    frames. None where it cannot be fitted (it leaves the equation's domain, too few frames)."""
+    frames. gauge: {state: fitode.eqparse.gauge.StateGauge} where x is a latent whose scale or
+    offset the equation fixes (the trainer's gauge: the state is s*x + b per column): the learned
+    s and b are fitted too (starting as the trainer's do) and the misfit is measured in x's units.
+    None where it cannot be fitted (it leaves the equation's domain, too few frames)."""
     import torch
 
     from fitode.codegen import PhysicsBlock
@@ -69,7 +73,7 @@ def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Map
     try:
         block = PhysicsBlock(system, params, integrator=integrator, substeps=substeps, dtype=torch.float64)
         block.set_constants({n: float(start[n]) for n in system.learnable})
-        problem = _Problem(block, xt, dt, windows, bend, max_windows)
+        problem = _Problem(block, xt, dt, windows, bend, max_windows, gauge)
         named = [(k, p) for k, p in block.named_parameters() if p.requires_grad] + problem.extra
         scales = problem.scales(named)
         converged = _minimise(lambda values: torch.mean(problem.residual(values) ** 2), named, scales, iterations)
@@ -87,8 +91,11 @@ def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Map
 class _Problem:
     """The residual of one fit as a function of its free tensors, in units of each state's spread."""
 
-    def __init__(self, block, xt, dt: float, windows: int | None, bend: bool, max_windows: int):
+    def __init__(self, block, xt, dt: float, windows: int | None, bend: bool, max_windows: int,
+                 gauge: Mapping | None = None):
         import torch
+
+        from .gauge import SCALE_START
 
         self.block, self.xt, self.dt, self.bend, self.windows = block, xt, float(dt), bend, windows
         self.models = dict(block.named_parameters())
@@ -96,6 +103,17 @@ class _Problem:
         self.middle = xt.mean(dim=0)
         self.reach = 1.0 / (xt - self.middle).abs().max().clamp_min(1e-24)  # the largest |c| with the pole outside
         self.extra = [(PERSPECTIVE, torch.zeros((), dtype=xt.dtype, requires_grad=True))] if bend else []
+        plans = [gauge.get(st) for st in block.system.states] if gauge else []
+        self.learn_scale = [i for i, g in enumerate(plans) if g is not None and g.scale_learned]
+        self.learn_offset = [i for i, g in enumerate(plans) if g is not None and g.offset_learned]
+        if self.learn_scale:  # a learned scale starts small, as the trainer's: a small swing, where sin(x) ~ x
+            self.extra.append(("gauge_scale", torch.full((len(self.learn_scale),), math.log(SCALE_START),
+                                                         dtype=xt.dtype, requires_grad=True)))
+        if self.learn_offset:  # a state under sqrt or log starts inside its domain, half a spread above zero
+            s0 = [SCALE_START if i in self.learn_scale else 1.0 for i in self.learn_offset]
+            b0 = [max(0.0, float(-(s * xt[:, i]).min() + 0.5 * s * xt[:, i].std())) if plans[i].positive else 0.0
+                  for s, i in zip(s0, self.learn_offset)]
+            self.extra.append(("gauge_offset", torch.tensor(b0, dtype=xt.dtype, requires_grad=True)))
         if windows is None:
             if T < nc + 2:
                 raise ValueError("too few frames for one trajectory")
@@ -120,8 +138,10 @@ class _Problem:
         for k, p in named:
             if k == "start":
                 out.append(spread.expand_as(p).clone())
-            elif k == PERSPECTIVE:
+            elif k in (PERSPECTIVE, "gauge_scale"):
                 out.append(torch.ones_like(p))
+            elif k == "gauge_offset":
+                out.append(p.detach().abs() + spread[self.learn_offset])
             else:
                 out.append(p.detach().abs().clamp_min(1e-3))
         return out
@@ -138,17 +158,31 @@ class _Problem:
         import torch
         return POLE_MARGIN * self.reach * torch.tanh(swapped[PERSPECTIVE])
 
+    def gauge(self, swapped):
+        """(s, b), each (k,): the equation's state is s * x + b."""
+        import torch
+        s = torch.ones(self.xt.shape[1], dtype=self.xt.dtype)
+        b = torch.zeros(self.xt.shape[1], dtype=self.xt.dtype)
+        if self.learn_scale:
+            s = s.index_put((torch.tensor(self.learn_scale),), swapped["gauge_scale"].exp())
+        if self.learn_offset:
+            b = b.index_put((torch.tensor(self.learn_offset),), swapped["gauge_offset"])
+        return s, b
+
     def difference(self, swapped):
         """prediction - target, in the target's units: (T, k) whole, (W, N - context, k) windows."""
         from torch.func import functional_call
 
         target = self.bent(swapped)
         own = {k: v for k, v in swapped.items() if k in self.models}
+        s, b = self.gauge(swapped)
         if self.index is None:
-            return functional_call(self.block, own, (swapped["start"][None], target.shape[0], self.dt))[0] - target
+            state = functional_call(self.block, own, (swapped["start"][None] * s + b, target.shape[0], self.dt))[0]
+            return (state - b) / s - target
         nc = self.block.n_context
         xw = target[self.index]
-        return functional_call(self.block, own, (xw[:, :nc], xw.shape[1], self.dt))[:, nc:] - xw[:, nc:]
+        state = functional_call(self.block, own, (xw[:, :nc] * s + b, xw.shape[1], self.dt))
+        return (state[:, nc:] - b) / s - xw[:, nc:]
 
     def residual(self, swapped):
         root = (1.0 / self.bent(swapped).var(dim=0).clamp_min(1e-24)).sqrt()  # every state counts equally
@@ -226,12 +260,16 @@ def _summary(block, problem: _Problem, named: list, scales: list, converged: boo
     if not all(math.isfinite(v) for v in [*values.values(), *errors.values(), misfit]):
         return None
     start = swapped["start"].detach().numpy().copy() if "start" in swapped else None
-    return TrajectoryFit(values, errors, misfit, difference, converged, problem.windows, start)
+    gauge = None
+    if problem.learn_scale or problem.learn_offset:
+        s, b = (v.detach() for v in problem.gauge(swapped))
+        gauge = {st: {"scale": float(s[i]), "offset": float(b[i])} for i, st in enumerate(block.system.states)}
+    return TrajectoryFit(values, errors, misfit, difference, converged, problem.windows, start, gauge)
 
 
 def trajectory_misfit(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping[str, float], *,
                       integrator: str = "rk4", substeps: int = 1, windows: int | None = None,
-                      max_windows: int = MAX_WINDOWS) -> float:
+                      max_windows: int = MAX_WINDOWS, gauge: Mapping | None = None) -> float:
     """The misfit fit_trajectory would start from with these constants, the whole trajectory
     starting from x's own first frames (inf where the equation cannot be rolled out): a cheap
     score to choose among starting points."""
@@ -244,7 +282,7 @@ def trajectory_misfit(system, params: Mapping, x: np.ndarray, dt: float, values:
     try:
         block = PhysicsBlock(system, params, integrator=integrator, substeps=substeps, dtype=torch.float64)
         block.set_constants({n: float(values[n]) for n in system.learnable})
-        problem = _Problem(block, xt, dt, windows, False, max_windows)
+        problem = _Problem(block, xt, dt, windows, False, max_windows, gauge)
         with torch.no_grad():
             value = float(torch.mean(problem.residual(dict(problem.extra) | dict(block.named_parameters())) ** 2))
     except (FitodeError, RuntimeError, FloatingPointError, ValueError):
