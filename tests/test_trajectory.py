@@ -72,3 +72,18 @@ def test_a_trajectory_outside_the_equations_domain_cannot_be_fitted():
     x = -np.linspace(1.0, 2.0, 40)[:, None]  # negative heights: sqrt(h) is not real
     assert fit_trajectory(system, {}, x, 0.1, {"k": 0.1}) is None
     assert trajectory_misfit(system, {}, x, 0.1, {"k": 0.1}) == float("inf")
+
+
+def test_a_latent_at_its_own_zero_is_fitted_with_the_gauge_the_equation_fixes():
+    # Torricelli on a zero-mean latent: sqrt(h) fixes h's zero, so the offset is learned with the constants
+    from fitode.eqparse.gauge import gauge_plan
+    system = parse("h' = -k*sqrt(h)")
+    t = np.arange(120) * 0.1
+    h = (1.0 - 0.05 * t / 2) ** 2
+    z = ((h - h.mean()) / h.std())[:, None]
+    plan = gauge_plan(system)
+    assert plan["h"].offset_learned and not plan["h"].scale_learned
+    assert fit_trajectory(system, {}, z, 0.1, {"k": 0.1}, windows=20) is None  # z itself dips below zero
+    fitted = fit_trajectory(system, {}, z, 0.1, {"k": 0.1}, windows=20, gauge=plan)
+    assert fitted.gauge["h"]["offset"] == pytest.approx(h.mean() / h.std(), rel=0.01)
+    assert fitted.values["k"] == pytest.approx(0.05 / np.sqrt(h.std()), rel=0.01)  # k moves by the scale to the 1/2
