@@ -9,7 +9,8 @@ trap at L/4), then the leading principal components. For each, the candidates (s
 restarts) are scored by how well their constants roll out the latent's windows, and the best
 few are fitted by the trajectory fitter (fitode.train.trajectory: windows of the training
 length, the equation's gauge learned as the trainer learns it); the best end is one start, in
-that order. They become the starts of restarts 1, 2, ...; restart 0 keeps the user's (or the
+that order, unless the equation follows that latent worse than MISFIT_MAX (a component of noise,
+which some constant always "fits"). They become the starts of restarts 1, 2, ...; restart 0 keeps the user's (or the
 equation file's) start.
 
 Right constants are not enough: measured on the real pendulum clips, restarts that started at
@@ -35,6 +36,7 @@ COMPONENTS = 3  # principal components tried as the latent
 CANDIDATES = 16  # starts scored on each
 FITTED = 2  # the best scored candidates fitted on each
 ITERATIONS = 200
+MISFIT_MAX = 0.5  # a latent the equation follows worse than this (RMS, in its spreads) is no start: noise
 DISTINCT = 0.05  # two ends closer than this (relative, every constant) are one start
 
 
@@ -79,7 +81,10 @@ def data_starts(components: np.ndarray, dt: float, system: OdeSystem, params: Ma
         fits = [f for f in fits if f is not None]
         if not fits:
             continue
-        final = min(fits, key=lambda f: f.misfit).values
+        fitted = min(fits, key=lambda f: f.misfit)
+        if fitted.misfit > MISFIT_MAX:  # a component of noise: any constant "fits" it (a decay at gamma 48)
+            continue
+        final = fitted.values
         if all(any(abs(final[k] - s.constants[k]) > DISTINCT * max(abs(s.constants[k]), 1e-9) for k in final)
                for s in starts):
             starts.append(DataStart(dict(final), c))
