@@ -36,7 +36,7 @@ COMPONENTS = 3  # principal components tried as the latent
 CANDIDATES = 16  # starts scored on each
 FITTED = 2  # the best scored candidates fitted on each
 ITERATIONS = 200
-MISFIT_MAX = 0.5  # a latent the equation follows worse than this (RMS, in its spreads) is no start: noise
+MISFIT_MAX = 0.7  # a latent the equation follows worse than this (RMS, in its spreads) is no start: noise
 DISTINCT = 0.05  # two ends closer than this (relative, every constant) are one start
 
 
