@@ -2,16 +2,13 @@
 
 The paper claims robustness to starts in [-10, 10], but from 3 of 7 such starts its trainer ends
 in a wrong basin. Before the real restarts, a cheap search fits the equation to frozen latents
-taken from the frames themselves (no encoder to learn): first the readout of the frames that
-oscillates at the period with which the frames repeat, when they do (on real pendulums the
-leading principal components also carry the swing's second harmonic, whose fit is the harmonic
-trap at L/4), then the leading principal components. For each, the candidates (spread like the
-restarts) are scored by how well their constants roll out the latent's windows, and the best
-few are fitted by the trajectory fitter (fitode.train.trajectory: windows of the training
-length, the equation's gauge learned as the trainer learns it); the best end is one start, in
-that order, unless the equation follows that latent worse than MISFIT_MAX (a component of noise,
-which some constant always "fits"). They become the starts of restarts 1, 2, ...; restart 0 keeps the user's (or the
-equation file's) start.
+taken from the frames themselves (no encoder to learn, so hundreds of steps cost little): first
+the readout of the frames that oscillates at the period with which the frames repeat, when they
+do (on real pendulums the leading principal components also carry the swing's second harmonic,
+whose fit is the harmonic trap at L/4), then the leading principal components. For each, a
+batch of candidates spread like the restarts is trained on the constants and the gauge alone,
+and its best end is one start, in that order. They become the starts of restarts 1, 2, ...;
+restart 0 keeps the user's (or the equation file's) start.
 
 Right constants are not enough: measured on the real pendulum clips, restarts that started at
 the right L with a random encoder were dragged into the harmonic trap by the encoder. So a start
@@ -21,22 +18,24 @@ carries its frozen latent too, and the restart's encoder first learns to reprodu
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping
 
 import numpy as np
+import torch
+from torch import nn
 
 from fitode.eqparse import OdeSystem, ParamSpec
 from fitode.eqparse.gauge import StateGauge
+from fitode.errors import FitodeError
 
 from .config import TrainConfig
-from .trajectory import fit_trajectory, trajectory_misfit
+from .loop import train_restarts
+from .observe import ObservationModel
 
 COMPONENTS = 3  # principal components tried as the latent
-CANDIDATES = 16  # starts scored on each
-FITTED = 2  # the best scored candidates fitted on each
-ITERATIONS = 200
-MISFIT_MAX = 0.7  # a latent the equation follows worse than this (RMS, in its spreads) is no start: noise
+CANDIDATES = 16  # starts trained on each
+STEPS = 300
 DISTINCT = 0.05  # two ends closer than this (relative, every constant) are one start
 
 
@@ -56,6 +55,25 @@ def oscillation_readout(components: np.ndarray, dt: float, period: float) -> np.
     return x @ u[:, 0]
 
 
+class _Frozen(nn.Module):
+    """An 'encoder' without weights: the latent is the input itself, for every restart."""
+
+    def __init__(self, restarts: int):
+        super().__init__()
+        self.restarts = restarts
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        z = x.reshape(x.shape[0], -1)
+        return z[None].expand(self.restarts, *z.shape)
+
+
+class _FrozenLatent(ObservationModel):
+    name = "frozen"
+
+    def encoder(self, architecture, in_shape, dim, seeds, output_mean=0.0, output_std=1.0):
+        return _Frozen(len(seeds))
+
+
 def data_starts(components: np.ndarray, dt: float, system: OdeSystem, params: Mapping[str, ParamSpec],
                 config: TrainConfig, plan: Mapping[str, StateGauge], candidates: list[dict[str, float]],
                 n: int, period: float | None = None) -> list[DataStart]:
@@ -64,8 +82,8 @@ def data_starts(components: np.ndarray, dt: float, system: OdeSystem, params: Ma
     search starts from (spread as the restarts are)."""
     if n <= 0 or system.dim != 1:
         return []  # one component is one state: a system of several states has no such shortcut
-    options = {"integrator": config.integrator, "substeps": config.substeps, "windows": int(config.window),
-               "gauge": plan if config.gauge else None}
+    cfg = replace(config, restarts=len(candidates), max_steps=STEPS, min_steps=min(config.min_steps, STEPS // 3),
+                  horizon_warmup=min(config.horizon_warmup, STEPS // 3), batch_windows=None)
     latents = [oscillation_readout(components, dt, period)] if period else []
     latents += [components[:, j] for j in range(min(COMPONENTS, components.shape[1]))]
     mean, std = config.prior
@@ -73,18 +91,16 @@ def data_starts(components: np.ndarray, dt: float, system: OdeSystem, params: Ma
     for c in latents:
         if not np.std(c) > 0 or len(starts) == n:
             continue
-        z = (mean + std * (c - c.mean()) / c.std())[:, None]
-        scored = sorted((trajectory_misfit(system, params, z, dt, cand, **options), i)
-                        for i, cand in enumerate(candidates))
-        fits = [fit_trajectory(system, params, z, dt, candidates[i], iterations=ITERATIONS, **options)
-                for score, i in scored[:FITTED] if math.isfinite(score)]
-        fits = [f for f in fits if f is not None]
-        if not fits:
+        z = torch.as_tensor(mean + std * (c - c.mean()) / c.std(), dtype=torch.float32).reshape(-1, 1, 1, 1)
+        try:
+            trained = train_restarts(z, dt, system, params, cfg, candidates, seeds=list(range(len(candidates))),
+                                     observation=_FrozenLatent(), plan=plan)
+        except FitodeError:
             continue
-        fitted = min(fits, key=lambda f: f.misfit)
-        if fitted.misfit > MISFIT_MAX:  # a component of noise: any constant "fits" it (a decay at gamma 48)
+        ends = [r for r in trained.records if r.status == "ok" and math.isfinite(r.loss) and r.final]
+        if not ends:
             continue
-        final = fitted.values
+        final = min(ends, key=lambda r: r.loss).final
         if all(any(abs(final[k] - s.constants[k]) > DISTINCT * max(abs(s.constants[k]), 1e-9) for k in final)
                for s in starts):
             starts.append(DataStart(dict(final), c))
