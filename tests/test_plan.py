@@ -75,7 +75,7 @@ def test_the_header_result_json_and_fit_json_record_the_same_choices(tmp_path, c
     assert all(p["verdict"] != "trusted" for p in result["parameters"].values())
 
 
-def _falling_disc(n=48, dt=1 / 60, g=600.0):
+def _falling_disc(n=48, dt=1 / 60, g=250.0):
     h, w, r = 110, 24, 3.0
     d = 10 + 0.5 * g * (np.arange(n) * dt) ** 2
     yy, xx = np.mgrid[:h, :w]
@@ -94,7 +94,7 @@ def test_fit_calibrates_behind_the_api_and_judges_the_calibrated_value():
                      calibrate=f"d(0)={d[0]:.4f}; d({t_end:.6f})={d[-1]:.4f}")
     g = res.parameters["g"]
     assert g.calibrated and g.latent_value is not None and abs(g.latent_value - g.value) > 1
-    assert abs(g.value / 600.0 - 1) < 0.03, g
+    assert abs(g.value / 250.0 - 1) < 0.03, g
     assert res.verdicts["g"]["verdict"] == "trusted", res.verdicts
     assert res.calibration["maps"]["d"]["n_points"] == 2
     raw = fitode.fit(frames, dt, eq="d'' = g", free=["g"], progress=False)
