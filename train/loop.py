@@ -25,7 +25,7 @@ from fitode.errors import FitodeError, TrainingError
 
 from . import interrupts
 from .config import ENCODER_NAMES, TrainConfig
-from .gauge import LR_FACTOR, Gauge
+from .latent_map import LR_FACTOR, Gauge
 from .history import History
 from .loss import restart_losses
 from .observe import ObservationModel
