@@ -5,15 +5,15 @@ preprocessed frames themselves, with one target: about `STEPS_PER_PERIOD` = 16 t
 period of the visible oscillation, i.e. omega*dt ~ 2*pi/16 ~ 0.39, the value of the
 paper's synthetic benchmark (omega = 2, dt = 0.2), at which the method is known to work.
 
-The measurement is the structure function of the sequence,
+The measurement is the structure function of the sequence (fitode.train.motion, shared with the
+training window),
 
     D(k) = mean over t and pixels of (f[t+k] - f[t])^2,
 
-the mean squared change between frames k apart, for every lag k at once (FFT, O(N log N) per
-pixel, streamed over pixel chunks so memory stays small). Sensor and compression noise that is
-independent from frame to frame adds a constant 2*sigma^2 to every D(k); it is estimated by
-extrapolating D to lag 0 from D(1) and D(2) and removed, leaving the RMS change due to motion,
-r(k) = sqrt(D(k) - noise). Two rules read r:
+the mean squared change between frames k apart, for every lag k at once. Sensor and compression
+noise that is independent from frame to frame adds a constant 2*sigma^2 to every D(k); it is
+estimated by extrapolating D to lag 0 from D(1) and D(2) and removed, leaving the RMS change
+due to motion, r(k) = sqrt(D(k) - noise). Two rules read r:
 
 1. Periodic: if the frames come back (r dips by at least 20% between two high stretches, and
    a shallow dip recurs at twice the lag; see `_period`), the lag of that dip is the period P
@@ -38,44 +38,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fitode.train.motion import motion_rms, search_lags, structure_function
+
 STEPS_PER_PERIOD = 16
 FRACTION = math.sin(math.pi / STEPS_PER_PERIOD)  # ~0.195: rule 2's share of the full change
 MIN_FRAMES = 100
 DIP = 0.2  # how far (as a share) the change must fall back for the frames to count as repeating
-_CHUNK_BYTES = 16 * 2**20
-
-
-def structure_function(frames: np.ndarray) -> np.ndarray:
-    """D(k) for k = 0..N-1: mean over pairs and pixels of (f[t+k] - f[t])^2.
-
-    `frames` is (N, ...) with any trailing shape; every trailing element is a pixel.
-    Uses D(k) = [sum_t g[t+k]^2 + g[t]^2 - 2 g[t] g[t+k]] / ((N-k) P) with g the frames minus
-    their temporal mean (which leaves differences unchanged but avoids cancellation); the cross
-    term is the autocorrelation, summed over pixels in the frequency domain.
-    """
-    n = int(frames.shape[0])
-    flat = frames.reshape(n, -1)
-    n_pix = flat.shape[1]
-    if n == 0 or n_pix == 0:
-        return np.zeros(n)
-    nfft = 1 << max(1, (2 * n - 1).bit_length())  # zero-padded: linear, not circular, correlation
-    power = np.zeros(nfft // 2 + 1)
-    sq = np.zeros(n)
-    chunk = max(1, _CHUNK_BYTES // (nfft * 24))
-    for j in range(0, n_pix, chunk):
-        g = flat[:, j:j + chunk].astype(np.float64)
-        g -= g.mean(axis=0)
-        sq += np.einsum("tp,tp->t", g, g)
-        spec = np.fft.rfft(g, n=nfft, axis=0)
-        power += np.einsum("fp,fp->f", spec.real, spec.real)
-        power += np.einsum("fp,fp->f", spec.imag, spec.imag)
-    cross = np.fft.irfft(power, n=nfft)[:n]
-    prefix = np.concatenate([[0.0], np.cumsum(sq)])
-    k = np.arange(n)
-    pairs = n - k
-    both = (prefix[n] - prefix[k]) + prefix[n - k]
-    d = (both - 2.0 * cross) / (pairs * n_pix)
-    return np.maximum(d, 0.0)
 
 
 @dataclass
@@ -128,21 +96,6 @@ def auto_stride(frames: np.ndarray, fps: float, *, min_frames: int = MIN_FRAMES)
     tail = f", capped at {cap} to keep at least {min_frames} frames" if stride < want else ""
     return StrideChoice(stride, f"auto: {why}{tail}; {kept} frames at dt {stride / fps:.4g} s",
                         rule, want, cap, period, big, math.sqrt(noise))
-
-
-def search_lags(n: int) -> int:
-    """The longest lag that sets the scale of the change in n frames: 2N/3, so at least N/3 pairs
-    of frames measure each lag."""
-    return max(3, (2 * n) // 3)
-
-
-def motion_rms(d: np.ndarray, last_lag: int) -> tuple[np.ndarray, float]:
-    """r[i], the RMS change due to motion at lag i+1 for lags 1..last_lag, from the structure
-    function d, and the noise variance removed. Noise independent between frames adds the same
-    2 sigma^2 at every lag; it is extrapolated to lag 0 from D(1) and D(2), which underestimates
-    it slightly for smooth motion (erring towards smaller strides and shorter windows)."""
-    noise = float(np.clip(2.0 * d[1] - d[2], 0.0, d[1]))
-    return np.sqrt(np.maximum(d[1:last_lag + 1] - noise, 0.0)), noise
 
 
 def _period(r: np.ndarray, search: int) -> int | None:

@@ -31,7 +31,7 @@ DEVICE_NAMES = ("cpu", "cuda")
 class TrainConfig:
     """Every training option. Invalid values raise ConfigError (a FitodeError) naming the option.
 
-    window: frames per training window (None: chosen from the frames, train/horizon.py). max_steps: step limit per restart. min_steps: no stop
+    window: frames per training window (None: chosen from the frames, train/window.py). max_steps: step limit per restart. min_steps: no stop
     before this step. lr: the encoder's Adam learning rate. const_lr: base learning rate of the
     constants (scaled per constant, see fitode.codegen.constants). batch_windows: windows per
     step (None: all). use_kl: the KL term (off only for the paper's ablation). prior: (mean, std)

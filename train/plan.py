@@ -17,7 +17,7 @@ from fitode.eqparse import OdeSystem, ParamSpec
 from fitode.errors import TrainingError
 
 from .config import ENCODER_NAMES, TrainConfig, resolve_encoder
-from .horizon import resolve_window
+from .window import resolve_window
 from .observe import ObservationModel, resolve_observation
 
 CHOICES = ("observation", "encoder", "window")  # the choices a plan records, in the order they are printed

@@ -1,10 +1,10 @@
-"""The training window chosen in time (train/horizon.py)."""
+"""The training window chosen in time (train/window.py)."""
 from __future__ import annotations
 
 import numpy as np
 
 from fitode.train.config import TrainConfig
-from fitode.train.horizon import WINDOW_MIN, auto_window, resolve_window
+from fitode.train.window import WINDOW_MIN, auto_window, resolve_window
 
 
 def _patch(values: np.ndarray, noise: float = 0.005, seed: int = 0) -> np.ndarray:

@@ -22,7 +22,7 @@ from dataclasses import replace
 import numpy as np
 import torch
 
-from fitode.stride import motion_rms, search_lags, structure_function
+from .motion import motion_rms, search_lags, structure_function
 
 WINDOW_MIN = 20
 SHARE = 1 - 1 / math.e
