@@ -9,8 +9,8 @@ import argparse
 import sys
 
 from fitode.errors import FitodeError
-from fitode.options import (add_equation_arguments, add_training_arguments, parse_assignments, parse_names,
-                            positive_int, training_options)
+from fitode.names import parse_assignments, parse_names
+from fitode.options import add_equation_arguments, add_training_arguments, positive_int, training_options
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import textwrap
 
+from fitode.describe import gauge_lines
 from fitode.errors import FitodeError
 from fitode.options import add_equation_arguments
 
@@ -25,7 +26,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from fitode.eqfile import list_systems, load_system, resolve
     from fitode.eqparse import analyse
-    from fitode.options import parse_assignments, parse_names
+    from fitode.names import parse_assignments, parse_names
 
     if args.list:
         for line in _list_lines(list_systems(), load_system):
@@ -131,12 +132,3 @@ def observation_lines(system, named: str | dict[str, str] | None) -> list[str]:
         out += textwrap.wrap(para, width=_WIDTH, initial_indent="  ", subsequent_indent="    ")
     return out
 
-
-def gauge_lines(system) -> list[str]:
-    """How the equation's state relates to the latent (fitode.eqparse.gauge): what a fit learns."""
-    from fitode.eqparse.gauge import gauge_plan
-    try:
-        plan = gauge_plan(system)
-    except Exception:  # noqa: BLE001 - advice only: the symmetry test can fail on unusual equations
-        return ["gauge: could not be analysed; the state is taken as the latent"]
-    return ["gauge (the equation's state from the latent z):"] + [f"  {g.describe()}" for g in plan.values()]

@@ -12,7 +12,8 @@ from __future__ import annotations
 import argparse
 
 from fitode.errors import FitodeError
-from fitode.options import add_equation_arguments, parse_assignments, positive_int
+from fitode.names import parse_assignments
+from fitode.options import add_equation_arguments, positive_int
 from fitode.train.config import INTEGRATOR_NAMES
 
 

@@ -51,7 +51,7 @@ def observe_value(text: str) -> str | dict[str, str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fitode.options import parse_assignments
+    from fitode.names import parse_assignments
     from fitode.pipeline import RunInterrupted
     from fitode.report import format_table
 

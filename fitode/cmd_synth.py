@@ -13,7 +13,8 @@ import argparse
 from pathlib import Path
 
 from fitode.errors import FitodeError
-from fitode.options import add_equation_arguments, parse_assignments
+from fitode.names import parse_assignments
+from fitode.options import add_equation_arguments
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -32,7 +32,7 @@ from pathlib import Path
 
 from fitode.eqparse import KNOWN_CONSTANTS, EquationError, OdeSystem, ParamSpec, parse
 from fitode.errors import FitodeError
-from fitode.options import parse_names
+from fitode.names import parse_names
 
 _PACKAGE = "fitode.equations"
 _TOP_KEYS = {"name", "description", "equation", "constants", "parameters", "prior", "stride", "observe"}

@@ -105,7 +105,7 @@ def understanding_lines(ode, spec, analysis, clip, plan) -> list[str]:
         lines.append("identifiability:")
         lines += [f"  {line}" for line in analysis["lines"]]
     if plan.config.gauge:
-        from fitode.cmd_check import gauge_lines
+        from fitode.describe import gauge_lines
         lines += gauge_lines(ode)
     return lines + plan.lines()
 

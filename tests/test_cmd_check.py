@@ -4,7 +4,7 @@ import pytest
 from fitode.cli import main
 from fitode.eqfile import list_systems
 from fitode.errors import FitodeError
-from fitode.options import parse_assignments, parse_names
+from fitode.names import parse_assignments, parse_names
 
 
 def check(capsys, *args):

@@ -1,0 +1,15 @@
+"""Lines that describe an equation to its user, shared by `fitode check` and a run's header.
+
+Here, not in either, so the report does not import a command's module.
+"""
+from __future__ import annotations
+
+
+def gauge_lines(system) -> list[str]:
+    """How the equation's state relates to the latent (fitode.eqparse.gauge): what a fit learns."""
+    from fitode.eqparse.gauge import gauge_plan
+    try:
+        plan = gauge_plan(system)
+    except Exception:  # noqa: BLE001 - advice only: the symmetry test can fail on unusual equations
+        return ["gauge: could not be analysed; the state is taken as the latent"]
+    return ["gauge (the equation's state from the latent z):"] + [f"  {g.describe()}" for g in plan.values()]
