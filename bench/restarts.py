@@ -12,7 +12,10 @@ N, and the estimates each run printed (more restarts must not move them much). T
 issue #20: --restarts 8 at most 2.5x --restarts 1.
 
 Shared machines: the load average before each run is recorded and the table gives the median
-of those; timings under a load above the number of CPUs are mostly the other processes'.
+of those; wall times under a load above the number of CPUs are mostly the other processes'. The
+process's CPU time (user + system, the process and its children) is given beside it: fitode
+trains on one torch thread, so on an idle machine the two nearly agree, and the CPU time is the
+steadier of the two on a busy one.
 
     python bench/restarts.py                 # or: fitode bench restarts (about 2 minutes on 2 idle cores)
     python bench/restarts.py --restarts 1,8 --repeats 3
@@ -25,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -62,16 +66,19 @@ def one_run(restarts: int, out: Path, extra: list[str]) -> dict[str, Any]:
     cmd = fitode_command() + [str(VIDEO), "--eq-file", str(EQ_FILE), "--restarts", str(restarts),
                               "--out", str(out), "--quiet"] + extra
     load = os.getloadavg()[0]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     done = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     from fitode.errors import FitodeError
     if done.returncode != 0:
         tail = (done.stderr or done.stdout).strip().splitlines()[-1:] or ["(no output)"]
         raise FitodeError(f"fitode --restarts {restarts} failed (exit {done.returncode}): {tail[0]}")
     result = json.loads((out / "result.json").read_text())
     values = {k: p.get("value") for k, p in result.get("parameters", {}).items()}
-    return {"restarts": restarts, "wall_s": wall, "load": load, "values": values}
+    return {"restarts": restarts, "wall_s": wall, "cpu_s": cpu, "load": load, "values": values}
 
 
 def summarise(runs: list[dict[str, Any]], counts: list[int]) -> list[dict[str, Any]]:
@@ -80,11 +87,11 @@ def summarise(runs: list[dict[str, Any]], counts: list[int]) -> list[dict[str, A
     for n in counts:
         mine = [r for r in runs if r["restarts"] == n]
         rows.append({"restarts": n, "wall_s": statistics.median(r["wall_s"] for r in mine),
-                     "walls": [r["wall_s"] for r in mine], "load": statistics.median(r["load"] for r in mine),
-                     "values": mine[-1]["values"]})
-    base = rows[0]["wall_s"]
+                     "walls": [r["wall_s"] for r in mine], "cpu_s": statistics.median(r["cpu_s"] for r in mine),
+                     "load": statistics.median(r["load"] for r in mine), "values": mine[-1]["values"]})
+    base, base_cpu = rows[0]["wall_s"], rows[0]["cpu_s"]
     for r in rows:
-        r["ratio"] = r["wall_s"] / base
+        r["ratio"], r["cpu_ratio"] = r["wall_s"] / base, r["cpu_s"] / base_cpu
     return rows
 
 
@@ -94,11 +101,12 @@ def table(rows: list[dict[str, Any]]) -> str:
     for r in rows:
         cells = {"n": str(r["restarts"]), "wall": f"{r['wall_s']:.2f}",
                  "runs": " ".join(f"{w:.1f}" for w in r["walls"]), "ratio": f"{r['ratio']:.2f}",
-                 "load": f"{r['load']:.2f}"}
+                 "cpu": f"{r['cpu_s']:.2f}", "cpu_ratio": f"{r['cpu_ratio']:.2f}", "load": f"{r['load']:.2f}"}
         cells.update({f"v.{k}": bc.num(r["values"].get(k), 5) for k in names})
         shown.append(cells)
     columns = [("restarts", "n"), ("wall s (median)", "wall"), ("each run s", "runs"),
-               (f"ratio to {rows[0]['restarts']}", "ratio"), ("load", "load")] + [(k, f"v.{k}") for k in names]
+               (f"ratio to {rows[0]['restarts']}", "ratio"), ("CPU s (median)", "cpu"), ("CPU ratio", "cpu_ratio"),
+               ("load", "load")] + [(k, f"v.{k}") for k in names]
     return bc.format_table(shown, columns, title="the bundled example, whole process, by --restarts")
 
 
