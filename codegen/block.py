@@ -231,10 +231,10 @@ class PhysicsBlock(nn.Module):
                            "kind": "initial_state"})
         return groups
 
-    def _const_args(self) -> tuple[torch.Tensor, ...]:
+    def _const_args(self, restarts: torch.Tensor | None = None) -> tuple[torch.Tensor, ...]:
         learn = tuple(self.constants().values())
         if self.restarts is not None:  # (R,) -> (R, 1): broadcast over each restart's windows
-            learn = tuple(c[:, None] for c in learn)
+            learn = tuple((c if restarts is None else c[restarts])[:, None] for c in learn)
         return learn + tuple(self.fixed_values.unbind(0))
 
     # ----------------------------------------------------------------- initial state
@@ -280,8 +280,9 @@ class PhysicsBlock(nn.Module):
         learned = self.initial_derivatives[..., idx, :].to(device=z_head.device, dtype=z_head.dtype)
         return torch.cat([y0[..., self._value_slots], learned], dim=-1)[..., self._learnable_perm]
 
-    def _head(self, z_head: torch.Tensor) -> torch.Tensor:
-        """z_head cut to the context frames: (B, n_context, dim), or (R, B, n_context, dim) with restarts."""
+    def _head(self, z_head: torch.Tensor, restarts: int | None = None) -> torch.Tensor:
+        """z_head cut to the context frames: (B, n_context, dim), or (R, B, n_context, dim) with
+        restarts (R = `restarts` where the caller rolls out only some of them)."""
         if z_head.dim() < 2 or z_head.shape[-1] != self.dim:
             raise ValueError(f"z_head must have shape (..., n_context, {self.dim}), got {tuple(z_head.shape)}")
         if z_head.shape[-2] < self.n_context:
@@ -289,22 +290,28 @@ class PhysicsBlock(nn.Module):
         zh = z_head[..., :self.n_context, :]
         if self.restarts is None:
             return zh.reshape(-1, self.n_context, self.dim)
-        if z_head.dim() != 4 or z_head.shape[0] != self.restarts:
-            raise ValueError(f"with {self.restarts} restarts z_head must be ({self.restarts}, B, n_context, "
+        r = self.restarts if restarts is None else restarts
+        if z_head.dim() != 4 or z_head.shape[0] != r:
+            raise ValueError(f"with {r} restarts z_head must be ({r}, B, n_context, "
                              f"{self.dim}), got {tuple(z_head.shape)}")
         return zh
 
     # ----------------------------------------------------------------- rollout
     def forward(self, z_head: torch.Tensor, n_frames: int, dt: float,
-                window_index: torch.Tensor | None = None) -> torch.Tensor:
+                window_index: torch.Tensor | None = None, restarts: torch.Tensor | None = None) -> torch.Tensor:
+        """The rollout of every window from its first frames z_head; with restarts (indices, R
+        restarts only), z_head holds those restarts only and only their constants are used, so a
+        training loop does no work for restarts that have stopped."""
         lead = z_head.shape[:-2]
-        zh = self._head(z_head)
+        if restarts is not None and (self.restarts is None or self.initial_state_mode == "learnable"):
+            raise ParameterError("a rollout of some restarts needs restarts and an initial state from differences")
+        zh = self._head(z_head, None if restarts is None else int(restarts.numel()))
         anchor = self.scheme.anchor
         if n_frames < anchor + 1:
             raise ValueError(f"n_frames = {n_frames}: the rollout starts at frame {anchor}")
         dt = float(dt)
         y0 = self.initial_state(zh, dt, window_index)
-        consts = self._const_args()
+        consts = self._const_args(restarts)
         fn = self.field.fn
         traj = self.integrator.rollout(lambda y: fn(y, *consts), y0, n_frames - anchor, dt, self.substeps)
         pred = traj if len(self._value_slots) == traj.shape[-1] else traj[..., self._value_slots]

@@ -114,25 +114,28 @@ class BatchedEncoder(nn.Module):
         self.restarts = len(modules)
         self._layers = _dense_layers(modules[0], self._names)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, restarts: torch.Tensor | None = None) -> torch.Tensor:
+        """(N, C, H, W) -> (R, N, d); with `restarts` (indices), only those restarts' encoders run,
+        (len(restarts), N, d): the training loop leaves out the restarts that have stopped."""
+        weights = tuple(self.weights) if restarts is None else tuple(w[restarts] for w in self.weights)
         if self._layers is not None:
-            return self._dense(x)
+            return self._dense(x, weights)
         base = self._base[0]
 
         def one(params, inp):
             return functional_call(base, dict(zip(self._names, params)), (inp,))
-        return vmap(one, in_dims=(0, None))(tuple(self.weights), x)
+        return vmap(one, in_dims=(0, None))(weights, x)
 
-    def _dense(self, x: torch.Tensor) -> torch.Tensor:
+    def _dense(self, x: torch.Tensor, weights: tuple[torch.Tensor, ...]) -> torch.Tensor:
         """The MLP and linear encoders as a chain of batched matrix products: the same numbers as
         the vmap path, at a third of its cost per step (vmap's per-call overhead dominates these
         small layers; bench/speed.py)."""
-        h = x.flatten(1).expand(self.restarts, -1, -1)  # every restart reads the same frames
+        h = x.flatten(1).expand(weights[0].shape[0], -1, -1)  # every restart reads the same frames
         for layer in self._layers:
             if layer is None:
                 h = torch.relu(h)
             else:
-                w, b = self.weights[layer[0]], self.weights[layer[1]]
+                w, b = weights[layer[0]], weights[layer[1]]
                 h = torch.baddbmm(b[:, None, :], h, w.transpose(1, 2))
         return h
 

@@ -59,20 +59,26 @@ class Gauge(nn.Module):
     def learned(self) -> bool:
         return bool(self.learn_scale.any() or self.learn_offset.any())
 
-    def scale_offset(self) -> tuple[torch.Tensor, torch.Tensor]:
-        """(R, d) scale and offset; fixed entries are constants, not parameters."""
-        s = torch.where(self.learn_scale, self.log_scale, self.log_scale0).exp()
-        b = torch.where(self.learn_offset, self.offset, self.offset0) * self.unit
+    def scale_offset(self, restarts: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """(R, d) scale and offset (of the restarts indexed, if given); fixed entries are
+        constants, not parameters."""
+        log_scale, offset = self.log_scale, self.offset
+        log_scale0, offset0 = self.log_scale0, self.offset0
+        if restarts is not None:
+            log_scale, offset = log_scale[restarts], offset[restarts]
+            log_scale0, offset0 = log_scale0[restarts], offset0[restarts]
+        s = torch.where(self.learn_scale, log_scale, log_scale0).exp()
+        b = torch.where(self.learn_offset, offset, offset0) * self.unit
         return s, b
 
-    def to_state(self, z: torch.Tensor) -> torch.Tensor:
-        """z (R, ..., d) -> x = s*z + b."""
-        s, b = self.scale_offset()
+    def to_state(self, z: torch.Tensor, restarts: torch.Tensor | None = None) -> torch.Tensor:
+        """z (R, ..., d) -> x = s*z + b; with `restarts`, z holds those restarts only."""
+        s, b = self.scale_offset(restarts)
         shape = (s.shape[0],) + (1,) * (z.dim() - 2) + (s.shape[1],)
         return z * s.reshape(shape) + b.reshape(shape)
 
-    def to_latent(self, x: torch.Tensor) -> torch.Tensor:
-        s, b = self.scale_offset()
+    def to_latent(self, x: torch.Tensor, restarts: torch.Tensor | None = None) -> torch.Tensor:
+        s, b = self.scale_offset(restarts)
         shape = (s.shape[0],) + (1,) * (x.dim() - 2) + (s.shape[1],)
         return (x - b.reshape(shape)) / s.reshape(shape)
 

@@ -25,6 +25,7 @@ from fitode.errors import FitodeError, TrainingError
 
 from . import interrupts
 from .config import ENCODER_NAMES, TrainConfig
+from .encoders import BatchedEncoder
 from .latent_map import LR_FACTOR, Gauge
 from .history import History
 from .loss import restart_losses
@@ -113,9 +114,14 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
     buffer: list[tuple] = []
     bar = _bar(config.max_steps, f"{n_runs} restart{'s' if n_runs != 1 else ''}", progress)
     step, length = 0, config.window
+    # the restarts still training (None: all): a stopped one is left out of the step's work, not
+    # only frozen, so R restarts cost what their steps cost rather than R times the longest's
+    can_leave_out = _runs_some(encoder) and config.initial_state != "learnable"
+    running: torch.Tensor | None = None
 
     def look(step: int) -> None:
         """The host's look every check_every steps: history, failures, the stopping rule."""
+        nonlocal running
         _flush(buffer, records, names, callback)
         for r, rec in enumerate(records):
             if rec.status == "failing":
@@ -133,6 +139,9 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
                 rec.converged, rec.stop_reason = True, "converged"
         for name, factor in block.follow_scales().items():
             opt.rescaled(const_params[name], factor)
+        now = active.tolist()
+        if can_leave_out and 0 < sum(now) < n_runs:
+            running = torch.tensor([r for r, a in enumerate(now) if a], device=device)
         if bar is not None:
             bar.update(step - bar.n)
             bar.set_postfix_str(_postfix(records, on))
@@ -146,14 +155,21 @@ def train_restarts(frames: torch.Tensor, dt: float, system: OdeSystem, params: M
                 starts = all_starts[pick.to(device)]
             length = horizon(step, config, nc, first)
             frame_ids, inverse = distinct_frames(windows.index(starts)[:, :length])
-            z = encoder(frames[frame_ids])  # (R, F, d)
+            if running is None:
+                z = encoder(frames[frame_ids])  # (R, F, d)
+            else:
+                z = encoder(frames[frame_ids], restarts=running)  # (R running, F, d)
             z_win = z[:, inverse]  # (R, B, L, d)
-            x_pred = block(gauge.to_state(z_win[:, :, :nc]), length, dt, window_index=starts)
-            total, mse, kl = restart_losses(z_win, gauge.to_latent(x_pred), first, prior=config.prior,
+            x_pred = block(gauge.to_state(z_win[:, :, :nc], running), length, dt, window_index=starts,
+                           restarts=running)
+            total, mse, kl = restart_losses(z_win, gauge.to_latent(x_pred, running), first, prior=config.prior,
                                             use_kl=use_kl)
             extra = observation.regulariser(z)
             if extra is not None:
                 total = total + extra
+            if running is not None:  # back to one entry per restart: NaN for those left out (inactive)
+                total, mse, kl = (v.new_full((n_runs,), math.nan).index_copy(0, running, v)
+                                  for v in (total, mse, kl))
             ok = active & torch.isfinite(total)
             opt.zero_grad()
             torch.where(ok, total, torch.zeros_like(total)).sum().backward()
@@ -215,13 +231,29 @@ def distill(encoder, frames: torch.Tensor, targets: Mapping[int, np.ndarray], co
         active[r] = True
     n = min(frames.shape[0], min(len(z) for z in columns.values()))
     opt = BatchedAdam([{"params": list(encoder.parameters()), "lr": config.lr * 10, "name": "encoder"}], n_runs)
+    # only the taught restarts' encoders run: the others' would be computed and thrown away
+    taught = torch.tensor(sorted(targets), device=frames.device) if _runs_some(encoder) else None
     for _ in range(DISTILL_STEPS):
         interrupts.check()
-        z = encoder(frames[:n])[..., :k]
-        loss = ((z - target[:, :n]).pow(2) * weight).sum(dim=2).mean(dim=1) / weight.sum(dim=(1, 2)).clamp_min(1)
+        if taught is None:
+            loss = _distill_loss(encoder(frames[:n])[..., :k], target[:, :n], weight)
+        else:
+            part = _distill_loss(encoder(frames[:n], restarts=taught)[..., :k], target[taught, :n], weight[taught])
+            loss = target.new_zeros(n_runs).index_copy(0, taught, part)
         opt.zero_grad()
         torch.where(active, loss, torch.zeros_like(loss)).sum().backward()
         opt.step(active)
+
+
+def _distill_loss(z: torch.Tensor, target: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
+    """(R,) mean squared miss of the taught latent dimensions, per restart."""
+    return ((z - target).pow(2) * weight).sum(dim=2).mean(dim=1) / weight.sum(dim=(1, 2)).clamp_min(1)
+
+
+def _runs_some(encoder) -> bool:
+    """Whether the encoder can run some restarts only (BatchedEncoder's `restarts`); an
+    observation model's own encoder may not, and then runs them all."""
+    return isinstance(encoder, BatchedEncoder) and type(encoder).forward is BatchedEncoder.forward
 
 
 def _flush(buffer: list[tuple], records: list[RunRecord], names: list[str], callback: Callback | None) -> None:
