@@ -133,6 +133,23 @@ def read_record(path: str | Path) -> dict[str, Any]:
         raise FitodeError(f"--report {path}: not a benchmark record ({exc})") from None
 
 
+def report_and_write(record: Mapping[str, Any], out: str | Path, name: str,
+                     print_report: Callable[[Mapping[str, Any]], None]) -> int:
+    """The end of a benchmark's run: its tables, then <out>/<name>.json, and where that went."""
+    print_report(record)
+    print(f"wrote {write_record(record, out, name)}")
+    return 0
+
+
+def reprinted(args: argparse.Namespace, print_report: Callable[[dict[str, Any]], None]) -> bool:
+    """--report PATH: print_report on that earlier record (True), so a benchmark's run can stop
+    there; False when no --report was given."""
+    if not getattr(args, "report", None):
+        return False
+    print_report(read_record(args.report))
+    return True
+
+
 def peak_rss_mb() -> float:
     """This process's peak resident memory so far (Linux reports KiB, macOS bytes)."""
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss

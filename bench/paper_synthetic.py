@@ -274,8 +274,7 @@ def run(args: argparse.Namespace) -> int:
     from fitode.errors import FitodeError
     from fitode.train.trainer import TrainConfig
 
-    if args.report:
-        print_report(bc.read_record(args.report))
+    if bc.reprinted(args, print_report):
         return 0
     cfg = settings(args)
     datasets = bc.pick(args.datasets, list(DATASETS), "--datasets")
@@ -316,10 +315,7 @@ def run(args: argparse.Namespace) -> int:
               "train_config_defaults": {k: (list(v) if isinstance(v, tuple) else v) for k, v in defaults.items()},
               "paper": PAPER, "paper_no_kl": PAPER_NO_KL, "target": TARGET, "summaries": summaries, "runs": runs,
               "wall_s": wall, "machine": bc.machine_info()}
-    print_report(record)
-    path = bc.write_record(record, args.out, "paper_synthetic")
-    print(f"wrote {path}")
-    return 0
+    return bc.report_and_write(record, args.out, "paper_synthetic", print_report)
 
 
 if __name__ == "__main__":

@@ -258,8 +258,7 @@ def print_report(record: dict[str, Any]) -> None:
 def run(args: argparse.Namespace) -> int:
     from fitode.synth import SCENES
 
-    if args.report:
-        print_report(bc.read_record(args.report))
+    if bc.reprinted(args, print_report):
         return 0
     scenes = bc.pick(args.scenes, list(SPEC), "--scenes")
     videos = args.videos if args.videos is not None else (1 if args.quick else 5)
@@ -311,10 +310,7 @@ def run(args: argparse.Namespace) -> int:
               "settings": {"videos": videos, "scenes": scenes, "seed": args.seed, "train": train,
                            "workers": args.workers, "calibrate": calibrate, "scene_kwargs": QUICK_SCENE if args.quick else {}},
               "rows": aggregate(results), "videos": results, "wall_s": wall, "machine": bc.machine_info()}
-    print_report(record)
-    path = bc.write_record(record, args.out, "realistic")
-    print(f"wrote {path}")
-    return 0
+    return bc.report_and_write(record, args.out, "realistic", print_report)
 
 
 if __name__ == "__main__":

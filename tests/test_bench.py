@@ -19,6 +19,7 @@ sys.path.insert(0, str(BENCH))
 import common as bc  # noqa: E402
 import paper_synthetic  # noqa: E402
 import realistic  # noqa: E402
+import restarts  # noqa: E402
 
 
 def _finite(*values) -> bool:
@@ -172,3 +173,18 @@ def test_table_and_finite_helpers():
     assert lines[0].startswith("name") and lines[2].startswith("x ") and lines[2].endswith("1.5")
     assert bc.all_finite([1.0, {"a": [2, 3.5]}]) and not bc.all_finite([{"a": [math.nan]}])
     assert bc.mean_std([1.0, None, 3.0, math.nan]) == (2.0, 1.0, 2)
+
+
+def test_restarts_summary_takes_medians_and_ratios_to_the_first_count():
+    runs = [{"restarts": n, "wall_s": w, "cpu_s": c, "load": 1.0, "values": {"L": 0.25}}
+            for n, w, c in ((1, 4.0, 3.0), (8, 9.0, 8.0), (1, 6.0, 5.0), (8, 11.0, 10.0), (1, 100.0, 4.0))]
+    rows = restarts.summarise(runs, [1, 8])
+    assert [r["wall_s"] for r in rows] == [6.0, 10.0]  # medians: a run slowed by a busy machine does not count
+    assert rows[0]["ratio"] == 1.0 and math.isclose(rows[1]["ratio"], 10.0 / 6.0)
+    assert math.isclose(rows[1]["cpu_ratio"], 9.0 / 4.0)
+    assert "L" in restarts.table(rows)
+
+
+def test_restarts_refuses_bad_counts_in_one_line(capsys):
+    assert cli.main(["bench", "restarts", "--restarts", "1,x"]) == 2
+    assert "--restarts" in capsys.readouterr().err
