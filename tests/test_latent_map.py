@@ -74,3 +74,14 @@ def test_values_report_each_restart_and_the_plan_comes_from_the_equation():
     assert math.isclose(v["h"]["offset"], 3 * 0.2, rel_tol=1e-6)
     with pytest.raises(KeyError):
         Gauge({}, ["h"], restarts=1, prior=(0.0, 1.0))
+
+
+def test_some_restarts_map_with_their_own_scale_and_offset():
+    gauge = Gauge(_plan(True, True), ["x"], restarts=3, prior=(0.0, 1.0))
+    with torch.no_grad():
+        gauge.log_scale.copy_(torch.tensor([[0.1], [0.2], [0.3]]))
+        gauge.offset.copy_(torch.tensor([[1.0], [2.0], [3.0]]))
+    z = torch.randn(3, 6, 1)
+    some = torch.tensor([0, 2])
+    torch.testing.assert_close(gauge.to_state(z[some], some), gauge.to_state(z)[some], rtol=0, atol=0)
+    torch.testing.assert_close(gauge.to_latent(z[some], some), gauge.to_latent(z)[some], rtol=0, atol=0)

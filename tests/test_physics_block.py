@@ -331,3 +331,19 @@ def test_block_pickles_and_copies():
     for clone in (pickle.loads(pickle.dumps(block)), copy.deepcopy(block)):
         torch.testing.assert_close(clone(z, 20, 0.2, window_index=idx), out)
         assert clone.constants()["g0"].item() == 3.0
+
+
+def test_a_rollout_of_some_restarts_is_those_restarts_rows_of_the_whole():
+    # the training loop rolls out only the restarts still training: it must be the same numbers
+    block = PhysicsBlock(parse("x'' = -a*x - b*x'"), {"b": ParamSpec(min=0.0)}, restarts=4)
+    block.set_constants({"a": [1.0, 2.0, 3.0, 4.0], "b": [0.1, 0.2, 0.3, 0.4]})
+    head = torch.randn(4, 5, block.n_context, 1)
+    whole = block(head, 12, 0.1)
+    some = torch.tensor([1, 3])
+    part = block(head[some], 12, 0.1, restarts=some)
+    torch.testing.assert_close(part, whole[some], rtol=0, atol=0)
+    (part ** 2).sum().backward()
+    grad = block.param_groups()[0]["params"][0].grad
+    assert grad[0] == 0 and grad[2] == 0 and grad[1] != 0 and grad[3] != 0  # the others are untouched
+    with pytest.raises(ValueError):
+        block(head, 12, 0.1, restarts=some)  # z_head of every restart for two of them
