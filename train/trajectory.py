@@ -95,7 +95,7 @@ class _Problem:
                  gauge: Mapping | None = None):
         import torch
 
-        from .gauge import SCALE_START
+        from .latent_map import SCALE_START
 
         self.block, self.xt, self.dt, self.bend, self.windows = block, xt, float(dt), bend, windows
         self.models = dict(block.named_parameters())
