@@ -189,7 +189,7 @@ class Calibration:
         they cannot reveal a bad fit themselves; the bounds can. And a constant whose fit on the
         calibrated trajectory disagrees with the latent value mapped through the calibration is
         ambiguous: the latent does not follow the calibrated state as the equation says."""
-        from fitode.train.verdict import Finding
+        from fitode.train.findings import Finding
         out = []
         for name in self.converted_names():
             v, spec = self.constants[name]["after"], params.get(name)

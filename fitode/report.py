@@ -321,6 +321,3 @@ def _spread(v: float | None) -> str:
         return "nan"
     return f"{v:.2g}"
 
-
-def _pct(rel: float) -> str:
-    return f"{100 * rel:.0f}%" if rel >= 0.1 else f"{100 * rel:.1f}%"

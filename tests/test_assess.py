@@ -7,7 +7,7 @@ import numpy as np
 from fitode.train.assess import assess
 from fitode.train.result import Estimate, FitResult, RunRecord
 from fitode.train.selection import selection
-from fitode.train.verdict import Finding
+from fitode.train.findings import Finding
 
 
 def _history(values):

@@ -8,7 +8,7 @@ from fitode.eqparse import parse
 from fitode.train.config import TrainConfig
 from fitode.train.consistency import one_trajectory_check, whole_clip_check
 from fitode.train.trajectory import fit_trajectory
-from fitode.train.verdict import Finding
+from fitode.train.findings import Finding
 
 
 def _fall(drag: float, n: int = 80, dt: float = 1 / 120, noise: float = 0.002, seed: int = 0) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The assessment: every verdict decided in one place, once, after any calibration.
 
-Training and the measurement's checks leave findings in result.checks (fitode.train.verdict's
-video checks, the trajectory checks of a measured path). Here they meet what can only be
+Training and the measurement's checks leave findings in result.checks (fitode.train.latent_checks'
+checks, the trajectory checks of a measured path). Here they meet what can only be
 judged with the whole run in view, each rule with one threshold:
 - what the equation lets a video measure (fitode.eqparse.identify): a constant that enters only
   through a combination is not trustworthy; one whose value depends on the latent's units is
@@ -25,10 +25,13 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
+from .findings import LEVELS, Finding, Verdict
 from .selection import SCORE_MARGIN
-from .verdict import LEVELS, RIVAL_MISS, Finding, Verdict
 
 AGREE_TOL = 0.05
+RIVAL_MISS = 10.0  # a restart that scores alike is a rival only if it fits the latent about as well
+# (its window error over the latent's variance within this factor: the loss would mix in the KL term,
+# which differs between right fits of a one-way motion)
 MOTION_STEPS = 200
 
 

@@ -25,7 +25,7 @@ from typing import Mapping
 import numpy as np
 
 from .trajectory import TrajectoryFit, fit_trajectory
-from .verdict import Finding
+from .findings import Finding
 
 HALF_TOL = 0.05
 SIGMAS = 3.0

@@ -251,9 +251,11 @@ def _distill_loss(z: torch.Tensor, target: torch.Tensor, weight: torch.Tensor) -
 
 
 def _runs_some(encoder) -> bool:
-    """Whether the encoder can run some restarts only (BatchedEncoder's `restarts`); an
-    observation model's own encoder may not, and then runs them all."""
-    return isinstance(encoder, BatchedEncoder) and type(encoder).forward is BatchedEncoder.forward
+    """Whether the encoder can run some restarts only (BatchedEncoder's `restarts`, or an encoder
+    that says it can); an observation model's own encoder may not, and then runs them all."""
+    if isinstance(encoder, BatchedEncoder):
+        return type(encoder).forward is BatchedEncoder.forward
+    return bool(getattr(encoder, "runs_some", False))
 
 
 def _flush(buffer: list[tuple], records: list[RunRecord], names: list[str], callback: Callback | None) -> None:

@@ -56,22 +56,31 @@ def oscillation_readout(components: np.ndarray, dt: float, period: float) -> np.
 
 
 class _Frozen(nn.Module):
-    """An 'encoder' without weights: the latent is the input itself, for every restart."""
+    """An 'encoder' without weights: restart r's latent is column columns[r] of its input (T, G, 1, 1)
+    itself, so that the searches on G frozen latents train together as one batched model."""
 
-    def __init__(self, restarts: int):
+    runs_some = True  # it can run a subset of its restarts (fitode.train.loop leaves stopped ones out)
+
+    def __init__(self, columns: list[int]):
         super().__init__()
-        self.restarts = restarts
+        self.restarts = len(columns)
+        self.register_buffer("columns", torch.as_tensor(columns, dtype=torch.long), persistent=False)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, restarts: torch.Tensor | None = None) -> torch.Tensor:
         z = x.reshape(x.shape[0], -1)
-        return z[None].expand(self.restarts, *z.shape)
+        columns = self.columns if restarts is None else self.columns[restarts]
+        return z[:, columns].T[..., None]
 
 
 class _FrozenLatent(ObservationModel):
     name = "frozen"
 
+    def __init__(self, columns: list[int]):
+        super().__init__()
+        self.columns = columns
+
     def encoder(self, architecture, in_shape, dim, seeds, output_mean=0.0, output_std=1.0):
-        return _Frozen(len(seeds))
+        return _Frozen(self.columns)
 
 
 def data_starts(components: np.ndarray, dt: float, system: OdeSystem, params: Mapping[str, ParamSpec],
@@ -82,26 +91,43 @@ def data_starts(components: np.ndarray, dt: float, system: OdeSystem, params: Ma
     search starts from (spread as the restarts are)."""
     if n <= 0 or system.dim != 1:
         return []  # one component is one state: a system of several states has no such shortcut
-    cfg = replace(config, restarts=len(candidates), max_steps=STEPS, min_steps=min(config.min_steps, STEPS // 3),
-                  horizon_warmup=min(config.horizon_warmup, STEPS // 3), batch_windows=None)
     latents = [oscillation_readout(components, dt, period)] if period else []
     latents += [components[:, j] for j in range(min(COMPONENTS, components.shape[1]))]
-    mean, std = config.prior
+    latents = [c for c in latents if np.std(c) > 0]
     starts: list[DataStart] = []
-    for c in latents:
-        if not np.std(c) > 0 or len(starts) == n:
-            continue
-        z = torch.as_tensor(mean + std * (c - c.mean()) / c.std(), dtype=torch.float32).reshape(-1, 1, 1, 1)
-        try:
-            trained = train_restarts(z, dt, system, params, cfg, candidates, seeds=list(range(len(candidates))),
-                                     observation=_FrozenLatent(), plan=plan)
-        except FitodeError:
-            continue
-        ends = [r for r in trained.records if r.status == "ok" and math.isfinite(r.loss) and r.final]
+    # the first n latents in one batch (a step costs little more for 32 restarts than for 16),
+    # the others only where those gave fewer than n distinct starts
+    for group in (latents[:n], latents[n:]):
+        if group and len(starts) < n:
+            _search(group, starts, n, dt, system, params, config, plan, candidates)
+    return starts
+
+
+def _search(latents: list[np.ndarray], starts: list[DataStart], n: int, dt: float, system: OdeSystem,
+            params: Mapping[str, ParamSpec], config: TrainConfig, plan: Mapping[str, StateGauge],
+            candidates: list[dict[str, float]]) -> None:
+    """The candidates trained on every frozen latent together; each latent's best end is added
+    to starts, in order, where it is new, until there are n."""
+    mean, std = config.prior
+    z = torch.as_tensor(np.stack([mean + std * (c - c.mean()) / c.std() for c in latents], axis=1),
+                        dtype=torch.float32).reshape(-1, len(latents), 1, 1)
+    k = len(candidates)
+    cfg = replace(config, restarts=k * len(latents), max_steps=STEPS, min_steps=min(config.min_steps, STEPS // 3),
+                  horizon_warmup=min(config.horizon_warmup, STEPS // 3), batch_windows=None)
+    try:
+        trained = train_restarts(z, dt, system, params, cfg, list(candidates) * len(latents),
+                                 seeds=list(range(k)) * len(latents),
+                                 observation=_FrozenLatent([g for g in range(len(latents)) for _ in range(k)]),
+                                 plan=plan)
+    except FitodeError:
+        return
+    for g, c in enumerate(latents):
+        if len(starts) == n:
+            return
+        ends = [r for r in trained.records[g * k:(g + 1) * k] if r.status == "ok" and math.isfinite(r.loss) and r.final]
         if not ends:
             continue
         final = min(ends, key=lambda r: r.loss).final
-        if all(any(abs(final[k] - s.constants[k]) > DISTINCT * max(abs(s.constants[k]), 1e-9) for k in final)
+        if all(any(abs(final[key] - s.constants[key]) > DISTINCT * max(abs(s.constants[key]), 1e-9) for key in final)
                for s in starts):
             starts.append(DataStart(dict(final), c))
-    return starts

@@ -31,7 +31,8 @@ from .score import dominant_period, separation_score
 from .selection import select_runs, selection
 from .starts import CANDIDATES, data_starts
 from .trajectory import fit_trajectory
-from .verdict import Finding, video_checks
+from .findings import Finding
+from .latent_checks import video_checks
 
 DATA_STARTS = 2  # restarts that start from the data search (fitode.train.starts), when there are enough
 SCORE_EXCLUDE = 2  # frames either side left out of the score's neighbours (see fitode.train.score)

@@ -1,70 +1,32 @@
-"""A verdict on every estimate: trusted, ambiguous or not trustworthy, with the reason in one line.
+"""The checks of a latent against the video itself, from the best run (findings for every constant).
 
 The loss alone cannot judge a fit (the harmonic trap, a latent that follows a start-up transient,
-pixel noise fitted by an encoder with more weights than frames). The verdict combines what the
-trainer can check against the video itself:
+pixel noise fitted by an encoder with more weights than frames). These checks look at the video:
 - the score of the best restart (fitode.train.score): does its latent tell the frames apart?
+  (a learned latent only: the observation model says where it applies)
+- the fit: the equation with the estimated constants must follow the latent in its windows;
 - the periods: where the frames repeat, the latent and the equation's own solution (the rollout
   with the estimated constants) must repeat with them;
-- activity: the latent must move wherever the frames still change, not only in a transient;
-- agreement: the restarts the estimate comes from must agree, and a restart that scored as well
-  and fits its latent about as well but ended elsewhere makes the estimate ambiguous;
+- activity: a learned latent must move wherever the frames still change, not only in a transient;
 - one-way motion: a decay, a drain or a fall can be bent by a free encoder into a solution with
-  other constants, which no score can see; only a linear readout of few components is trusted;
-- what the equation lets a video measure (fitode.eqparse.identify): a constant that enters only
-  through a combination, or whose value depends on the latent's units until calibrated.
-The worst finding decides: any "not trustworthy" beats "ambiguous", which beats "trusted".
+  other constants, which no score can see; only a linear readout of few components is trusted.
+fitode.train.assess weighs their findings with the rest into the verdicts.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Any, Iterable, Mapping
 
 import numpy as np
 
+from .findings import Finding
 from .score import dominant_period
 
-LEVELS = ("trusted", "ambiguous", "not trustworthy")
 SCORE_MIN = 0.5  # right latents scored 0.78-0.995 on every motion case tried, wrong ones -0.5 to 0.45
 PERIOD_TOL = 0.1
 MISS_MAX = 0.05  # window prediction error over the latent's variance: right fits measured 1e-5 to 1e-3
-RIVAL_MISS = 10.0  # a restart that scores alike is a rival only if it fits the latent about as well
-# (its window error over the latent's variance within this factor: the loss would mix in the KL term,
-# which differs between right fits of a one-way motion)
 ONE_WAY_RHO = 0.95
 ONE_WAY_RANK = 2  # a linear readout of more components than this can bend a one-way trajectory
 QUIET = 0.1  # a quarter of the clip where the latent moves less than this fraction of its spread
-
-
-@dataclass(frozen=True)
-class Finding:
-    """One check's outcome: a level and a one-line reason, for every constant or only `names`."""
-
-    level: str
-    reason: str
-    names: tuple[str, ...] | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"level": self.level, "reason": self.reason}
-        if self.names is not None:
-            out["names"] = list(self.names)
-        return out
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> "Finding":
-        names = d.get("names")
-        return cls(d["level"], d["reason"], tuple(names) if names is not None else None)
-
-
-@dataclass(frozen=True)
-class Verdict:
-    verdict: str
-    reason: str  # the first reason of the worst level, in one line
-    others: tuple[str, ...] = ()  # every other reason found, worst first
-
-    def to_dict(self) -> dict:
-        return {"verdict": self.verdict, "reason": self.reason, "other_reasons": list(self.others)}
 
 
 def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt: float, score: float | None,
