@@ -139,8 +139,7 @@ def execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_of
         calibrated, extra = _calibrate(result, req, analysis, time_offset)
     elif req.calibration:
         result.meta["calibration_skipped"] = "interrupted"
-    assess(result, analysis, calibrated=calibrated, extra=extra,
-           physical_units=fit_plan.observation.physical_units).apply(result)
+    assess(result, analysis, calibrated=calibrated, extra=extra).apply(result)
     return result
 
 

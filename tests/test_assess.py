@@ -81,7 +81,8 @@ def test_the_identifiability_rules_and_calibration():
     assert _judged(dep, _analysis("dependent")).verdicts["k"].verdict == "not trustworthy"
     assert _judged(dep, _analysis("dependent"), calibrated=["k"]).verdicts["k"].verdict == "trusted"
     # a model that measures the state in its own units needs no calibration
-    assert _judged(dep, _analysis("dependent"), physical_units=True).verdicts["k"].verdict == "trusted"
+    dep.meta["physical_units"] = True
+    assert _judged(dep, _analysis("dependent")).verdicts["k"].verdict == "trusted"
     combo = _judged(dep, _analysis(separable=False, combination="k*w")).verdicts["k"]
     assert combo.verdict == "not trustworthy" and "k*w" in combo.reason
 

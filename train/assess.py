@@ -54,12 +54,13 @@ class Assessment:
         result.checks = {**result.checks, "assessed": [f.to_dict() for f in self.findings]}
 
 
-def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iterable[Finding] = (),
-           physical_units: bool = False) -> Assessment:
+def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iterable[Finding] = ()) -> Assessment:
     """The assessment of a FitResult. analysis: the equation's IdentifiabilityReport (None: not
     judged on it); calibrated: the constants a calibration put in physical units; extra: the
-    calibration's findings; physical_units: the observation measures the state in its own units."""
+    calibration's findings. result.meta["physical_units"]: the observation measured the state in
+    its own units, so that no constant waits for a calibration."""
     calibrated = set(calibrated)
+    physical_units = bool(result.meta.get("physical_units"))
     measured = list(_measurement_findings(result)) + list(extra)
     interrupted = bool(result.meta.get("interrupted"))
     if interrupted:
