@@ -199,6 +199,10 @@ class Calibration:
                                    f"({'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}): "
                                    "the latent does not follow the calibrated state"))
         for name, c in self.constants.items():
+            if c.get("unfitted"):
+                out.append(Finding("not trustworthy", f"calibrated {name}: the equation cannot reproduce the calibrated "
+                                   "trajectory from any starting point (it leaves the equation's domain), so "
+                                   f"{name} stays in latent units; check the calibration's times and values", (name,)))
             if disagree(c):
                 out.append(Finding("ambiguous", f"calibrated {name}: the latent value mapped through the calibration "
                                    f"gives {c['mapped_best']:.6g}, but a fit of the calibrated trajectory gives "
@@ -217,6 +221,9 @@ class Calibration:
                 out.append(f"  {name}: {c['before']:.6g} (latent units) -> {c['after']:.6g} (calibrated, "
                            f"x{_ratio(c['after'], c['before'])}, {how}; a fit of the calibrated trajectory gives "
                            f"{c['refit']:.6g})")
+            elif c.get("unfitted"):
+                out.append(f"  {name}: {c['before']:.6g} kept in latent units: the calibrated trajectory could not be "
+                           "fitted")
             else:
                 out.append(f"  {name}: {c['before']:.6g} kept (scale-free); check: re-fitting the best run's "
                            f"calibrated trajectory moves it {c['best_run_before']:.6g} -> {c['refit']:.6g} "
@@ -283,9 +290,6 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     scales = {n: _scale(analysis, n) for n in system.learnable}
     mapped_best = {n: best[n] * f for n, f in factors.items() if f is not None}
     fitted = _refit(system, params, x[: result.train_frames], result.dt, best, mapped_best, maps, options, seed)
-    if fitted is None and len(mapped_best) < len(factors):
-        raise CalibrationError("the equation cannot reproduce the calibrated trajectory from any starting point "
-                               "(it leaves the equation's domain); check the calibration values")
     constants: dict[str, dict[str, Any]] = {}
     notes: list[str] = []
     if fitted is None:
@@ -295,6 +299,9 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
         ref = best.get(name, est.value)
         refit = fitted.values[name] if fitted is not None else math.nan
         converted = scales[name] != "free" if scales[name] else not (factor is not None and factor == 1.0)
+        # no mapping and no fit: the constant stays in latent units, and the finding says why
+        unfitted = converted and factor is None and fitted is None
+        converted = converted and not unfitted
         if not converted:
             after, ratio = est.value, 1.0
         elif factor is not None:
@@ -305,7 +312,8 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
                            "mapped": None if factor is None else est.value * factor,
                            "mapped_best": mapped_best.get(name), "refit": refit,
                            "refit_std": fitted.errors[name] if fitted is not None else math.nan,
-                           "best_run_before": ref, "converted": converted, "scale": scales[name],
+                           "best_run_before": ref, "converted": converted, "unfitted": unfitted,
+                           "scale": scales[name],
                            "change": _rel(after, est.value)}
     best_after = {n: mapped_best.get(n, fitted.values[n] if fitted is not None else best[n]) for n in system.learnable}
     rollout = _rollout(system, params, x, result.dt, best_after, settings)
