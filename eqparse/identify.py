@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 import re
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from fractions import Fraction
 from typing import Iterable
 
@@ -66,9 +66,6 @@ class ConstantReport:
     combination: str | None  # the measurable combination when not separable
     scale: str  # one of SCALES
     reason: str
-    # state -> p: with every state x_s read as a_s * x_s, the equations hold again with this
-    # constant times prod a_s**p (scale_exponents); None where it does not move by a pure power
-    exponents: dict[str, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -196,8 +193,6 @@ def analyse(system: OdeSystem, *, seed: int = _SEED) -> IdentifiabilityReport:
                        f"{_are(pinned_list)} rescaled")
         reports.append(ConstantReport(name, separable[name], combination, scale, sep_text + why))
 
-    exponents = scale_exponents(system, seed=seed)
-    reports = [replace(r, exponents=exponents.get(r.name)) for r in reports]
     notes = []
     if by_nonlinear:
         notes.append(f"the nonlinear terms fix the scale of {_join(sorted(by_nonlinear, key=order))}: at large "
