@@ -42,6 +42,9 @@ MAX_DEPTH = 60
 KNOWN_CONSTANTS: dict[str, float] = {"g": 9.80665}
 """Physical constants fixed at these values unless the caller frees them (SI units)."""
 
+NUMBER_ARGUMENT_MAX = 1e6
+"""Largest number a function may take as its whole argument (sympy evaluates such a call at once)."""
+
 MATH_CONSTANTS: dict[str, sympy.Expr] = {"pi": sympy.pi, "e": sympy.E}
 
 FUNCTIONS = {
@@ -179,6 +182,10 @@ class _ToSympy(Transformer):
                 _check_name(tok, "t", as_state=False)
             known = ", ".join(FUNCTIONS)
             raise _Located(f"unknown function '{tok}' (known: {known})", tok.line, tok.column)
+        if arg.is_number and abs(complex(arg)) > NUMBER_ARGUMENT_MAX:
+            # sympy evaluates a function of a number at once, and exp(1e300) runs mpmath for hours
+            raise _Located(f"{tok}(...): a function of a number beyond {NUMBER_ARGUMENT_MAX:g} is no constant "
+                           "a fit can use; write its value", tok.line, tok.column)
         return fn(arg)
 
     def sum(self, children):

@@ -309,3 +309,10 @@ def test_error_is_a_fitode_error_with_one_line():
     err = refusal("x' = y'\n")
     assert isinstance(err, FitodeError)
     assert "\n" not in str(err) and str(err).endswith("(column 6)")
+
+
+@pytest.mark.parametrize("text", ["x' = exp(1e300)*x", "x' = -x*sin(-2e7)", "x' = x*cosh(sqrt(1e300))"])
+def test_function_of_a_huge_number_is_refused_in_one_line(text):
+    # sympy would evaluate exp(1e300) at once, in mpmath, for hours
+    with pytest.raises(EquationError, match=r"a function of a number beyond 1e\+06"):
+        parse(text)
