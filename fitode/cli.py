@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import difflib
 import importlib
+import re
 import signal
 import sys
 import threading
@@ -26,6 +28,28 @@ VERBS = {
 
 class _Parser(argparse.ArgumentParser):
     """argparse that reports bad flags in one line with status 2 (argparse prints usage too)."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        # before argparse: it reports a missing required flag first, so `--sytem pendulum`
+        # would say only that one of --eq, --eq-file, --system is required
+        self._check_flags(sys.argv[1:] if args is None else list(args))
+        return super().parse_known_args(args, namespace)
+
+    def _check_flags(self, args: list[str]) -> None:
+        if self._subparsers is not None:  # `fitode synth paper ...`: the sub-verb's parser checks its own flags
+            return
+        known = [s for s in self._option_string_actions if s.startswith("--")]
+        for arg in args:
+            if arg == "--":
+                break
+            flag = arg.split("=", 1)[0]
+            if not re.fullmatch(r"--[A-Za-z][\w-]*", flag) or flag in known:
+                continue
+            if len([k for k in known if k.startswith(flag)]) == 1:  # argparse takes a unique abbreviation
+                continue
+            close = difflib.get_close_matches(flag, known, n=1, cutoff=0.6)
+            hint = f" (did you mean {close[0]}?)" if close else f" (see {self.prog} -h)"
+            self.error(f"unknown flag {flag}{hint}")
 
     def error(self, message: str) -> None:  # noqa: D401
         # main() already prefixes "fitode: error:"; name the verb only when there is one

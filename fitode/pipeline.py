@@ -2,7 +2,8 @@
 
 run_video reads the video, says what it understood, fits, calibrates when asked, and writes
 an output folder: result.json (the report), fit.json (the full FitResult with every run's
-history, reloadable with FitResult.load), latent.png, params.png, loss.png and frames.png.
+history, reloadable with FitResult.load), estimates.csv and track.csv (fitode.tables), latent.png,
+params.png, loss.png and frames.png.
 An interrupted run (Ctrl-C) or one where every restart failed still leaves a folder, with
 result.json marked "incomplete" or "failed" and whatever plots its data allow.
 """
@@ -141,7 +142,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     result.meta.update({"input": report["input"]})
     result.save(folder / "fit.json")
     report["warnings"] += _plots_for_result(folder, result, report, plots_done, t0)
-    report["files"] = sorted(["result.json", "fit.json", *plots_done])
+    from fitode.tables import write_run_tables
+    report["files"] = sorted(["result.json", "fit.json", *plots_done, *write_run_tables(report, folder)])
     rep.write_json(report, folder / "result.json")
     say(f"wrote {folder}/ ({', '.join(report['files'])})")
     outcome = RunOutcome(result=result, out_dir=folder, report=report, warnings=list(report["warnings"]))

@@ -36,7 +36,7 @@ class JobOutcome:
     """What a worker reports back: small (no arrays), so it crosses process and node boundaries cheaply.
 
     status: "complete" | "incomplete" (the fit stopped early, e.g. interrupted) | "failed".
-    parameters: name -> {"value", "std", "verdict", "verdict_reason"} as in result.json.
+    parameters: name -> {"value", "std", "verdict", "verdict_reason", "unit", "calibrated"} as in result.json.
     """
 
     name: str
@@ -124,7 +124,9 @@ def report_parameters(report: dict[str, Any]) -> dict[str, dict[str, float | Non
     for name, est in (report.get("parameters") or {}).items():
         est = est if isinstance(est, dict) else {}
         out[name] = {"value": _num(est.get("value")), "std": _num(est.get("std"))}
-        out[name].update({k: est[k] for k in ("verdict", "verdict_reason") if isinstance(est.get(k), str)})
+        out[name].update({k: est[k] for k in ("verdict", "verdict_reason", "unit") if isinstance(est.get(k), str)})
+        if isinstance(est.get("calibrated"), bool):
+            out[name]["calibrated"] = est["calibrated"]
     return out
 
 

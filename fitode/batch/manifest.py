@@ -33,7 +33,9 @@ Keys (a row's value wins over `[defaults]`, which wins over the command line's f
     fps start end roi size color stride mask calibrate train_fraction   as in `fitode VIDEO`
     prior          "MEAN,STD"
     free           constant names to free, separated by spaces or commas
+    observe        the observation model, as --observe ("position", "x=position;y=size")
     const.NAME     fix a constant;  init.NAME   start every restart there
+    const  init    the same as --const/--init text, "L=1,z=0.1" (merged with const.NAME columns)
     true.NAME      the known true value, for the summary's relative error
     restarts max_steps seed window integrator ...   any trainer option (TrainConfig field)
 """
@@ -55,13 +57,24 @@ from fitode.errors import FitodeError
 
 EQUATION_KEYS = ("equation", "eq", "eq_file", "system")
 VIDEO_KEYS = ("fps", "start", "end", "roi", "size", "color", "stride", "mask", "calibrate", "train_fraction")
-MODEL_KEYS = ("prior", "free")
+MODEL_KEYS = ("prior", "free", "observe", "const", "init")
 META_KEYS = ("video", "setting", "name")
 MAP_PREFIXES = ("const", "init", "true")
 # files the batch writes beside the job folders
-RESERVED_NAMES = {"batch.json", "summary.csv", "summary.json", "aggregate.csv", "aggregate.json"}
+RESERVED_NAMES = {"batch.json", "summary.csv", "summary.json", "aggregate.csv", "aggregate.json",
+                  "estimates.csv"}
 # Options the batch sets itself, or that make no sense per job (each job has one core: no threads).
 _NOT_PER_JOB = {"prior", "device", "threads"}
+# The flags of `fitode VIDEO` (argparse dest names) that are no manifest column, and why. Every
+# other flag is a column of the same name (tests/test_batch_columns.py holds the two together).
+CLI_ONLY = {
+    "help": "prints help; no job",
+    "out": "the batch names each job's folder (the 'name' column) under its own --out",
+    "quiet": "output only: a batch's workers print nothing of their own",
+    "json": "output only: each job's result.json is in its folder",
+    "device": "set once for the batch by `fitode batch --device`, not per job",
+    "threads": "set by the batch: each worker gets its share of the cores",
+}
 
 
 class ManifestError(FitodeError):
@@ -247,13 +260,13 @@ class _Row:
                     raise self.error(key, f"unknown column (dotted columns start with {', '.join(MAP_PREFIXES)})")
                 if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
                     raise self.error(key, f"'{name}' is not a constant's name")
-            elif key in MAP_PREFIXES:
+            elif key == "true":
                 raise self.error(key, f"write one column per constant, e.g. '{key}.gamma'")
             elif key not in known:
                 close = [k for k in sorted(known) if _close(k, key)]
                 hint = f" (did you mean '{close[0]}'?)" if close else ""
                 raise self.error(key, f"unknown column{hint}")
-            if isinstance(value, (dict, list)) and key not in ("roi", "size", "prior", "free"):
+            if isinstance(value, (dict, list)) and key not in ("roi", "size", "prior", "free", "observe"):
                 raise self.error(key, f"expected a single value, got {type(value).__name__}")
 
 
@@ -332,8 +345,13 @@ def _make_job(index: int, count: int, row: _Row, fdef: _Row, cli: _Row) -> Job:
             raise got[1].error("prior", "the standard deviation must be positive")
     if (got := pick("free")) is not None:
         kwargs["free"] = tuple(_names(got[0], got[1], "free"))
+    if (got := pick("observe")) is not None:
+        kwargs["observe"] = _observe(got[0], got[1])
     for prefix in ("const", "init"):
-        values = {n: _float(v, src, k) for n, (v, src, k) in pick_map(prefix).items()}
+        values = {}
+        if (got := pick(prefix)) is not None:  # "L=1,z=0.1" as after --const; dotted columns win
+            values = _assignments(got[0], got[1], prefix)
+        values.update({n: _float(v, src, k) for n, (v, src, k) in pick_map(prefix).items()})
         if values:
             kwargs[prefix] = dict(sorted(values.items()))
     for opt, typ in row.options.items():
@@ -402,6 +420,12 @@ def _check_equations(jobs: list[Job], file: str) -> None:
         if isinstance(ode, ManifestError):
             raise ode
         learnable = tuple(ode.learnable)
+        if isinstance(k.get("observe"), dict):
+            from fitode.train.observe.catalog import check_states
+            try:
+                check_states(k["observe"], ode.states)
+            except FitodeError as exc:
+                raise ManifestError(f"{job.where}, column 'observe': {exc}") from None
         for prefix, names in (("init", k.get("init", {})), ("true", job.truth)):
             for n in names:
                 if n not in learnable:
@@ -489,6 +513,22 @@ def _pair(value: Any, src: _Row, key: str) -> tuple[float, float]:
     if len(parts) != 2:
         raise src.error(key, f"expected MEAN,STD, got {value!r}")
     return _float(parts[0], src, key), _float(parts[1], src, key)
+
+
+def _observe(value: Any, src: _Row) -> str | dict[str, str]:
+    from fitode.train.observe.catalog import parse_observe  # --observe's own check
+    try:
+        return parse_observe(value if isinstance(value, dict) else _text(value, src, "observe"))
+    except FitodeError as exc:
+        raise src.error("observe", str(exc)) from None
+
+
+def _assignments(value: Any, src: _Row, key: str) -> dict[str, float]:
+    from fitode.options import parse_assignments  # --const/--init's own check
+    try:
+        return parse_assignments(_text(value, src, key), flag=key)
+    except FitodeError as exc:
+        raise src.error(key, str(exc)) from None
 
 
 def _names(value: Any, src: _Row, key: str) -> list[str]:

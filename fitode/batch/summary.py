@@ -6,7 +6,8 @@ constant NAME, NAME.std (spread over restarts), NAME.verdict (trusted / ambiguou
 trustworthy; its reason is in summary.json), NAME.true and NAME.rel_error where a true value is
 given. aggregate.csv: setting, jobs, complete, failed, then per constant NAME.mean,
 NAME.std (sample standard deviation over the setting's complete videos), NAME.n, NAME.true
-and NAME.rel_error (of the mean), as the paper's tables report them.
+and NAME.rel_error (of the mean), as the paper's tables report them. estimates.csv: job, video,
+then the columns of a run's estimates.csv (fitode.tables), one row per job and constant.
 
 Every file is written to a temporary name and renamed over the old one, so an interrupted
 batch never leaves a half-written summary.
@@ -21,6 +22,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from fitode.jsonio import write_json, write_text
+from fitode.tables import batch_estimates_csv, csv_text
 
 STATUSES = ("complete", "incomplete", "failed", "pending")
 
@@ -128,15 +130,17 @@ def aggregate_table(agg: list[dict[str, Any]]) -> tuple[list[str], list[list[Any
 
 
 def write_summary(out: Path, rows: list[SummaryRow], meta: dict[str, Any]) -> None:
-    """summary.csv, summary.json, aggregate.csv and aggregate.json, each replaced atomically."""
+    """summary.csv, summary.json, aggregate.csv, aggregate.json and estimates.csv (every job's
+    estimates in one table, fitode.tables), each replaced atomically."""
     agg = aggregate(rows)
     header, table = summary_table(rows)
-    write_text(_csv(header, table), out / "summary.csv")
+    write_text(csv_text(header, table), out / "summary.csv")
     payload = {**meta, "counts": counts(rows), "jobs": [_row_json(r) for r in rows], "aggregate": agg}
     write_json(payload, out / "summary.json")
     header, table = aggregate_table(agg)
-    write_text(_csv(header, table), out / "aggregate.csv")
+    write_text(csv_text(header, table), out / "aggregate.csv")
     write_json({"manifest": meta.get("manifest"), "settings": agg}, out / "aggregate.json")
+    write_text(batch_estimates_csv(rows), out / "estimates.csv")
 
 
 def format_aggregate(agg: list[dict[str, Any]]) -> str:
@@ -167,15 +171,6 @@ def _row_json(r: SummaryRow) -> dict[str, Any]:
     d = asdict(r)
     d["rel_error"] = {n: r.rel_error(n) for n in r.truth}
     return d
-
-
-def _csv(header: list[str], table: list[list[Any]]) -> str:
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header)
-    for line in table:
-        w.writerow(["" if v is None else (repr(v) if isinstance(v, float) else v) for v in line])
-    return buf.getvalue()
 
 
 def _round(v: float | None, digits: int) -> float | None:

@@ -1,0 +1,96 @@
+"""The tables a run leaves to take away: estimates.csv and track.csv, written from result.json's report.
+
+estimates.csv: one row per learnable constant, ESTIMATE_COLUMNS.
+track.csv: one row per frame used: time_s (video seconds), frame (index in the source video),
+then per state S: S (the latent, or the calibrated value in physical units when --calibrate was
+applied), S_fit (the equation's rollout), S_residual (S - S_fit).
+
+Both are read from the report alone, so their numbers are result.json's numbers (floats written
+with repr, which round-trips exactly); nothing here judges or recomputes an estimate.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+from fitode.jsonio import to_jsonable, write_text
+
+# interval_low/high stay empty until estimates carry an interval
+ESTIMATE_COLUMNS = ("constant", "value", "interval_low", "interval_high", "std", "unit", "calibrated",
+                    "verdict", "reason")
+BATCH_ESTIMATE_COLUMNS = ("job", "video") + ESTIMATE_COLUMNS
+
+
+def csv_text(header: Iterable[str], table: Iterable[Iterable[Any]]) -> str:
+    """CSV with None as an empty cell and floats as repr (exact round trip)."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(list(header))
+    for line in table:
+        w.writerow(["" if v is None else (repr(v) if isinstance(v, float) else v) for v in line])
+    return buf.getvalue()
+
+
+def estimate_rows(parameters: Mapping[str, Mapping[str, Any]]) -> list[list[Any]]:
+    """ESTIMATE_COLUMNS rows from result.json's "parameters" (or the batch's copy of it)."""
+    rows = []
+    for name, est in parameters.items():
+        interval = est.get("interval")
+        low, high = (interval[0], interval[1]) if isinstance(interval, (list, tuple)) and len(interval) == 2 \
+            else (None, None)
+        rows.append([name, est.get("value"), low, high, est.get("std"), est.get("unit"),
+                     bool(est.get("calibrated")), est.get("verdict"), est.get("verdict_reason")])
+    return rows
+
+
+def estimates_csv(report: Mapping[str, Any]) -> str:
+    return csv_text(ESTIMATE_COLUMNS, estimate_rows(report.get("parameters") or {}))
+
+
+def track_header(states: Iterable[str]) -> list[str]:
+    states = list(states)
+    return ["time_s", "frame"] + states + [f"{s}_fit" for s in states] + [f"{s}_residual" for s in states]
+
+
+def track_csv(report: Mapping[str, Any]) -> str | None:
+    """track.csv's text, or None when the report has no trajectory (a failed or interrupted run)."""
+    traj = report.get("trajectory")
+    if not traj:
+        return None
+    states = list(traj["states"])
+    inp = report.get("input") or {}
+    fps, stride = inp.get("fps"), int(inp.get("stride") or 1)
+    first = int(round(float(inp.get("first_frame_time_s") or 0.0) * fps)) if fps else 0
+    table = []
+    for i, (t, z, r) in enumerate(zip(traj["time"], traj["latent"], traj["rollout"])):
+        resid = [_minus(a, b) for a, b in zip(z, r)]
+        table.append([t, first + i * stride, *z, *r, *resid])
+    return csv_text(track_header(states), table)
+
+
+def write_run_tables(report: Mapping[str, Any], folder: Path) -> list[str]:
+    """Write estimates.csv and (when there is a trajectory) track.csv; the names written."""
+    report = to_jsonable(report)  # NaN -> empty cell, as result.json writes it null
+    write_text(estimates_csv(report), folder / "estimates.csv")
+    done = ["estimates.csv"]
+    track = track_csv(report)
+    if track is not None:
+        write_text(track, folder / "track.csv")
+        done.append("track.csv")
+    return done
+
+
+def batch_estimates_csv(rows: Iterable[Any]) -> str:
+    """One table for a whole batch: BATCH_ESTIMATE_COLUMNS, one row per job and constant (SummaryRow's)."""
+    table = [[r.name, r.video, *line] for r in rows for line in estimate_rows(r.parameters)]
+    return csv_text(BATCH_ESTIMATE_COLUMNS, table)
+
+
+def _minus(a: Any, b: Any) -> float | None:
+    # the rollout of a run that went non-finite is null in result.json: no residual there
+    if a is None or b is None or not (math.isfinite(a) and math.isfinite(b)):
+        return None
+    return a - b
