@@ -11,10 +11,7 @@ from fitode.errors import (CodegenError, ConfigError, EquationError, FitodeError
                            NonFiniteError, ParameterError, TrainingError)
 
 
-def fit(*args, **kwargs):
-    """See fitode.api.fit (imported lazily so `import fitode` does not load torch)."""
-    from fitode.api import fit as _fit
-    return _fit(*args, **kwargs)
+from fitode.fitting import fit  # noqa: E402 - torch-free; imports fitode.api when called
 
 
 def __getattr__(name):

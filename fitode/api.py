@@ -1,4 +1,4 @@
-"""`fitode.fit`: the public API on arrays of frames, and the three steps it is made of.
+"""The three steps `fitode.fit` (fitode.fitting) is made of.
 
     request(...)                 every check that needs no frames (the equation, the options,
                                  the calibration text): a FitRequest
@@ -24,6 +24,7 @@ from fitode.train.observe import ObservationModel
 from fitode.train.plan import FitPlan, make_plan
 from fitode.train.result import FitResult
 from fitode.train.trainer import Callback, fit_frames
+from fitode.fitting import fit  # noqa: F401 - fitode.api.fit, as before
 
 
 @dataclass(frozen=True)
@@ -44,34 +45,6 @@ class FitRequest:
     observe_source: str = "as asked"
     calibration: tuple = ()
     spec: Any = None
-
-
-def fit(frames, dt: float, *, eq: str | None = None, system: str | OdeSystem | None = None,
-        eq_file: str | None = None, const: Mapping[str, float] | None = None, free: Iterable[str] = (),
-        init: Mapping[str, float] | None = None, params: Mapping[str, ParamSpec] | None = None,
-        prior: tuple[float, float] | None = None, train_fraction: float = 1.0,
-        observe: str | ObservationModel | None = None, calibrate: str | None = None, time_offset: float = 0.0,
-        callback: Callback | None = None, progress: bool = True, **options) -> FitResult:
-    """Estimate the learnable constants of an equation from a frame sequence.
-
-    frames: (T, H, W), (T, C, H, W) or (T, H, W, C) with C in {1, 3}, numpy or torch, any range.
-    dt: seconds between consecutive frames.
-    The equation is given as text (eq), a shipped system name or an OdeSystem (system), or an
-    equation file (eq_file). const fixes constants, free frees known ones, init sets starting
-    values for every restart, prior overrides the equation file's (mean, std). observe is the
-    observation model: "auto" (None: the equation file's, else chosen from the equation and the
-    frames), a name of fitode.train.observe.catalog, one per state ({"x": "position", "y": "size"} or
-    "x=position;y=size"), or an ObservationModel instance (a model of one's own).
-    calibrate: known values of states, "h(0)=0.07; h(25)=0.01" (times in seconds from the first
-    frame, plus time_offset): scale-dependent constants come back in physical units, judged as such.
-    options: any TrainConfig field (restarts, max_steps, window, integrator, substeps, encoder,
-    use_kl, lr, const_lr, batch_windows, seed, device, threads, ...). Every bad option raises a
-    fitode.ConfigError naming it, before any work.
-    """
-    req = request(eq=eq, system=system, eq_file=eq_file, const=const, free=free, init=init, params=params,
-                  prior=prior, train_fraction=train_fraction, observe=observe, calibrate=calibrate, **options)
-    x = as_frames(frames)
-    return execute(req, plan(req, x, dt), x, time_offset=time_offset, callback=callback, progress=progress)
 
 
 def request(*, eq: str | None = None, system: str | OdeSystem | None = None, eq_file: str | None = None,

@@ -93,14 +93,7 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     target = _check_out_dir(out_dir)
     analysis = rep.analysis_dict(rep.identifiability(ode))
 
-    clip = _read(video, **read.as_dict(), progress=progress)
-    n_frames = int(clip.frames.shape[0])
-    if n_frames == 0:
-        raise FitodeError(f"{video}: no frames to fit (check --start/--end)")
-    t0 = float(clip.start_frame) / float(clip.fps)  # video time of frame 0: what --start skipped
-    if req.calibration:
-        from fitode.calibrate import check_times
-        check_times(req.calibration, t0, t0 + (n_frames - 1) * clip.dt, slack=0.5 * clip.dt)
+    clip, t0 = read_clip(video, read, req.calibration, progress=progress)
     frames = api.as_frames(clip.frames)
     plan = api.plan(req, frames, clip.dt)
     for line in rep.understanding_lines(ode, spec, analysis, clip, plan):
@@ -153,6 +146,22 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
 
 
 # ---------------------------------------------------------------------------------------------
+def read_clip(video: str | Path, read: ReadOptions = ReadOptions(), calibration: tuple = (), *,
+              progress: bool = False) -> tuple[Any, float]:
+    """The clip a fit of `video` uses (fitode.video.Clip) and the video time of its first frame
+    (what `start` skipped), with the checks of `fitode VIDEO`: at least one frame, calibration
+    times inside the clip. fitode.fit reads a path through here too, so both fit the same frames."""
+    clip = _read(video, **read.as_dict(), progress=progress)
+    n_frames = int(clip.frames.shape[0])
+    if n_frames == 0:
+        raise FitodeError(f"{video}: no frames to fit (check --start/--end)")
+    t0 = float(clip.start_frame) / float(clip.fps)
+    if calibration:
+        from fitode.calibrate import check_times
+        check_times(calibration, t0, t0 + (n_frames - 1) * clip.dt, slack=0.5 * clip.dt)
+    return clip, t0
+
+
 def _read(video, **kw):
     from fitode import video as vid
     path = Path(str(video))
