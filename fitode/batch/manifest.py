@@ -420,6 +420,12 @@ def _check_equations(jobs: list[Job], file: str) -> None:
         if isinstance(ode, ManifestError):
             raise ode
         learnable = tuple(ode.learnable)
+        if k.get("calibrate") is not None:
+            from fitode.calibrate import parse_calibration  # --calibrate's own check, on the equation's states
+            try:
+                parse_calibration(k["calibrate"], ode.states)
+            except FitodeError as exc:
+                raise ManifestError(f"{job.where}, column 'calibrate': {exc}") from None
         if isinstance(k.get("observe"), dict):
             from fitode.train.observe.catalog import check_states
             try:
@@ -482,6 +488,18 @@ def _bool(value: Any, src: _Row, key: str) -> bool:
 
 
 def _typed(value: Any, typ: type, src: _Row, key: str) -> Any:
+    x = _converted(value, typ, src, key)
+    from fitode.errors import ConfigError
+    from fitode.train.config import TrainConfig
+    try:  # the option's own rule, as the flag's (fitode.options): `integrator = rk5` fails here, not in a worker
+        TrainConfig(**{key: x})
+    except ConfigError as exc:
+        message = str(exc)
+        raise src.error(key, message[len(key) + 1:] if message.startswith(key + " ") else message) from None
+    return x
+
+
+def _converted(value: Any, typ: type, src: _Row, key: str) -> Any:
     if typ is bool:
         return _bool(value, src, key)
     if typ is int:
