@@ -1,0 +1,77 @@
+"""estimates.csv and track.csv: the run's numbers as result.json has them, in tables to take away."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+
+import pytest
+
+from fitode.examples.make_example import decay_values, render_glow, write_mp4
+from fitode.pipeline import run_job
+from fitode.tables import ESTIMATE_COLUMNS, estimates_csv, track_csv, track_header, write_run_tables
+
+
+def _report() -> dict:
+    return {
+        "input": {"fps": 30.0, "stride": 2, "first_frame_time_s": 1.0},
+        "parameters": {
+            "L": {"value": 0.25073, "std": 0.001, "unit": "m", "calibrated": False, "verdict": "trusted",
+                  "verdict_reason": "the restarts agree"},
+            "k": {"value": 1.5, "std": math.nan, "unit": None, "calibrated": True, "verdict": "ambiguous",
+                  "verdict_reason": "one run", "interval": [1.2, 1.8]},
+        },
+        "trajectory": {"time": [1.0, 1.0 + 1 / 15, 1.0 + 2 / 15], "states": ["x", "y"],
+                       "latent": [[0.1, 1.0], [0.2, 2.0], [0.3, None]],
+                       "rollout": [[0.1, 1.5], [0.25, 2.0], [0.5, 3.0]]},
+    }
+
+
+def _rows(text: str) -> list[dict[str, str]]:
+    return list(csv.DictReader(io.StringIO(text)))
+
+
+def test_estimates_columns_and_values():
+    rows = _rows(estimates_csv(_report()))
+    assert tuple(rows[0]) == ESTIMATE_COLUMNS
+    L, k = rows
+    assert (L["constant"], float(L["value"]), float(L["std"]), L["unit"], L["calibrated"], L["verdict"],
+            L["reason"]) == ("L", 0.25073, 0.001, "m", "False", "trusted", "the restarts agree")
+    assert L["interval_low"] == L["interval_high"] == ""
+    assert (float(k["interval_low"]), float(k["interval_high"]), k["calibrated"]) == (1.2, 1.8, "True")
+
+
+def test_track_columns_frames_and_residuals():
+    rows = _rows(track_csv(_report()))
+    assert list(rows[0]) == track_header(["x", "y"]) == ["time_s", "frame", "x", "y", "x_fit", "y_fit",
+                                                          "x_residual", "y_residual"]
+    assert [int(r["frame"]) for r in rows] == [30, 32, 34]  # 1 s at 30 fps, every 2nd frame
+    assert float(rows[1]["x_residual"]) == pytest.approx(0.2 - 0.25)
+    assert rows[2]["y"] == "" and rows[2]["y_residual"] == ""  # a null in result.json stays empty
+    assert track_csv({"parameters": {}, "trajectory": None}) is None
+
+
+def test_nan_is_written_empty(tmp_path):
+    assert write_run_tables(_report(), tmp_path) == ["estimates.csv", "track.csv"]
+    k = _rows((tmp_path / "estimates.csv").read_text())[1]
+    assert k["std"] == ""
+
+
+@pytest.mark.slow  # a tiny fit, about 3 s
+def test_a_run_folder_holds_both_tables_equal_to_result_json(tmp_path):
+    video = write_mp4(tmp_path / "glow.mp4", render_glow(decay_values(30, 10.0, 0.5), size=16), 10.0)
+    out = run_job(video, tmp_path / "run", eq="I' = -gamma*I", start=0.5, restarts=1, max_steps=5, window=8,
+                  stride=1, log=None)
+    report = json.loads((out.out_dir / "result.json").read_text())
+    assert {"estimates.csv", "track.csv"} <= set(report["files"])
+    est, = _rows((out.out_dir / "estimates.csv").read_text())
+    gamma = report["parameters"]["gamma"]
+    assert float(est["value"]) == gamma["value"] and est["verdict"] == gamma["verdict"]
+    track = _rows((out.out_dir / "track.csv").read_text())
+    traj = report["trajectory"]
+    assert len(track) == len(traj["time"]) == report["input"]["frames_used"]
+    assert [float(r["time_s"]) for r in track] == traj["time"]
+    assert [float(r["I"]) for r in track] == [z[0] for z in traj["latent"]]
+    assert [float(r["I_fit"]) for r in track] == [z[0] for z in traj["rollout"]]
+    assert int(track[0]["frame"]) == 5  # --start 0.5 at 10 fps
