@@ -32,6 +32,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from .errors import EquationError
 from .system import OdeSystem, deriv_symbol
+from .typos import likely_typo, nearest
 
 MAX_LENGTH = 2000
 """Longest equation text accepted (characters)."""
@@ -83,6 +84,14 @@ class _Equation:
     column: int  # where the equation starts
     occurrences: list[_Occurrence] = field(default_factory=list)
     explicit: _Occurrence | None = None  # the LHS when it is exactly one derivative
+    calls: list[_Call] = field(default_factory=list)
+
+
+@dataclass
+class _Call:
+    function: str
+    names: set[str]  # the names in the argument, states by their plain name
+    has_derivative: bool  # the argument holds x', x'', ... (a plain state is among names)
 
 
 class _Located(Exception):
@@ -136,6 +145,7 @@ class _ToSympy(Transformer):
     def __init__(self) -> None:
         super().__init__()
         self.occ: list[_Occurrence] = []
+        self.calls: list[_Call] = []
 
     def number(self, children):
         return _number(str(children[0]))
@@ -186,6 +196,8 @@ class _ToSympy(Transformer):
             # sympy evaluates a function of a number at once, and exp(1e300) runs mpmath for hours
             raise _Located(f"{tok}(...): a function of a number beyond {NUMBER_ARGUMENT_MAX:g} is no constant "
                            "a fit can use; write its value", tok.line, tok.column)
+        syms = getattr(arg, "free_symbols", set())
+        self.calls.append(_Call(str(tok), {s.name.rstrip("'") for s in syms}, any("'" in s.name for s in syms)))
         return fn(arg)
 
     def sum(self, children):
@@ -212,6 +224,7 @@ class _ToSympy(Transformer):
     def equation(self, children):
         lhs, eq_tok, rhs = children
         occ, self.occ = self.occ, []
+        calls, self.calls = self.calls, []
         for o in occ:
             o.lhs = (o.line, o.column) < (eq_tok.line, eq_tok.column)
         occ.sort(key=lambda o: (o.line, o.column))
@@ -219,7 +232,7 @@ class _ToSympy(Transformer):
         explicit = None
         if len(left) == 1 and left[0].order >= 1 and lhs == deriv_symbol(left[0].name, left[0].order):
             explicit = left[0]
-        return _Equation(lhs, rhs, 0, 0, occ, explicit)
+        return _Equation(lhs, rhs, 0, 0, occ, explicit, calls)
 
     def start(self, children):
         return list(children)
@@ -319,11 +332,16 @@ def _derivs(expr: sympy.Expr, states: Mapping[str, int] | Iterable[str]) -> dict
     return found
 
 
-def parse(text: str, *, fix: Mapping[str, float] | None = None, free: Iterable[str] = ()) -> OdeSystem:
+def parse(text: str, *, fix: Mapping[str, float] | None = None, free: Iterable[str] = (),
+          declared: Iterable[str] = ()) -> OdeSystem:
     """Parse equation text into a checked OdeSystem.
 
     fix: constants held at a value (a known one like g=9.81, or one that would be learnable).
-    free: known constants (g) made learnable.
+    free: known constants (g) made learnable; a learnable name listed here is declared as such.
+    declared: names the caller declares constants (an equation file's [parameters]).
+    A constant whose name is a likely typo of a state's (`teta` beside theta, eqparse.typos) is an
+    EquationError unless fixed, freed or declared; a constant inside sin/cos/tan where the
+    equation has states gets a hint in OdeSystem.hints.
     Raises EquationError (with a 1-based column where one applies) for every refusal.
     """
     if not isinstance(text, str):
@@ -356,7 +374,42 @@ def parse(text: str, *, fix: Mapping[str, float] | None = None, free: Iterable[s
     for eq, (line, column) in zip(equations, starts):
         eq.line, eq.column = line, column
 
-    return _build(b, equations, dict(fix or {}), [free] if isinstance(free, str) else list(free))
+    free = [free] if isinstance(free, str) else list(free)
+    system = _build(b, equations, dict(fix or {}), free)
+    deliberate = set(fix or {}) | set(free) | ({declared} if isinstance(declared, str) else set(declared))
+    system.hints = _name_hints(b, equations, system, deliberate)
+    return system
+
+
+# functions whose argument is an angle: where an equation with states means a state
+_ANGLE_FUNCTIONS = ("sin", "cos", "tan")
+
+
+def _name_hints(b: _Builder, equations: list[_Equation], system: OdeSystem, deliberate: set[str]) -> tuple[str, ...]:
+    """Refuse a learnable name that is a likely typo of a state; hint at a constant where a state is expected."""
+    states = system.states
+    for eq in equations:
+        for o in eq.occurrences:
+            if o.name not in system.learnable or o.name in deliberate:
+                continue
+            near = [s for s in states if likely_typo(o.name, s)]
+            if near:
+                s = nearest(o.name, near)
+                raise b.error(f"'{o.name}' is not a state: did you mean '{s}'? (as written, {o.name} would be "
+                              f"learned as a constant; if that is meant, say so with --free {o.name})",
+                              o.line, o.column)
+    hints: list[str] = []
+    hinted: set[str] = set()
+    for eq in equations:
+        for c in eq.calls:
+            if c.function not in _ANGLE_FUNCTIONS or c.has_derivative or c.names & set(states):
+                continue
+            for name in sorted(c.names & set(system.learnable) - deliberate - hinted):
+                s = nearest(name, states)
+                hints.append(f"'{name}' inside {c.function}(...) is a constant to learn, not a state; "
+                             f"if you meant the state {s}, write {c.function}({s})")
+                hinted.add(name)
+    return tuple(hints)
 
 
 def _build(b: _Builder, equations: list[_Equation], fix: dict[str, float], free: list[str]) -> OdeSystem:

@@ -57,6 +57,7 @@ class OdeSystem:
     fixed: fixed constants and their values (g, pi, e, or ones the caller fixed).
     learnable: learnable constant names in a stable order.
     text: the original equation text.
+    hints: the parser's advice that stops nothing, one line each (shown before a fit, kept in its warnings).
     """
 
     states: tuple[str, ...]
@@ -65,6 +66,7 @@ class OdeSystem:
     fixed: dict[str, float] = field(default_factory=dict)
     learnable: tuple[str, ...] = ()
     text: str = ""
+    hints: tuple[str, ...] = ()  # one-line advice from the parser (a constant where a state is expected)
 
     @property
     def max_order(self) -> int:

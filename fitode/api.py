@@ -113,6 +113,7 @@ def execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_of
     elif req.calibration:
         result.meta["calibration_skipped"] = "interrupted"
     assess(result, analysis, calibrated=calibrated, extra=extra).apply(result)
+    result.warnings[:0] = list(req.system.hints)  # the parser's advice stays with the numbers it concerns
     return result
 
 

@@ -62,7 +62,7 @@ class EquationSpec:
         fix = {k: v for k, v in self.constants.items() if k not in free}
         fix.update(const)
         freed = [n for n in self.parameters if n in KNOWN_CONSTANTS and n not in const and n not in free]
-        return parse(self.equation, fix=fix, free=freed + free)
+        return parse(self.equation, fix=fix, free=freed + free, declared=tuple(self.parameters))
 
 
 def _number(value, where: str) -> float:

@@ -114,3 +114,23 @@ def test_batch_flags_become_manifest_defaults(capsys, tmp_path):
     out = capsys.readouterr().out
     assert code == 0
     assert "const={'c': 0.1}" in out and "init={'k': 0.3}" in out and "restarts=2" in out and "min_steps=5" in out
+
+
+@pytest.mark.parametrize("argv,said", [
+    (["v.mp4", "--sytem", "pendulum"], "unknown flag --sytem (did you mean --system?)"),
+    (["v.mp4", "--eq", "x'' = -k*x", "--max-step=3", "--restrats", "2"], "unknown flag --restrats (did you mean --restarts?)"),
+    (["batch", "m.csv", "--dryrun"], "fitode batch: unknown flag --dryrun (did you mean --dry-run?)"),
+    (["check", "--eq", "x'' = -k*x", "--zzzz"], "fitode check: unknown flag --zzzz (see fitode check -h)"),
+    (["synth", "paper", "motion", "--outt", "x.npy"], "fitode synth paper: unknown flag --outt (did you mean --out?)"),
+])
+def test_an_unknown_flag_names_itself_and_its_nearest_flag(argv, said, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # nothing exists: the flag is refused before anything is looked at
+    _one_line_error(capsys, argv, said)
+
+
+def test_a_typo_of_a_state_is_one_line_status_2(capsys, tmp_path):
+    _one_line_error(capsys, [str(tmp_path / "nope.mp4"), "--eq", "theta'' = -g/L*sin(teta)"],
+                    "'teta' is not a state: did you mean 'theta'?")
+    _one_line_error(capsys, ["check", "--eq", "theta'' = -g/L*sin(teta)"], "did you mean 'theta'?")
+    assert main(["check", "--eq", "theta'' = -g/L*sin(teta)", "--free", "teta"]) == 0
+    assert "learnable constants:" in capsys.readouterr().out

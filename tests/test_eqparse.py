@@ -316,3 +316,52 @@ def test_function_of_a_huge_number_is_refused_in_one_line(text):
     # sympy would evaluate exp(1e300) at once, in mpmath, for hours
     with pytest.raises(EquationError, match=r"a function of a number beyond 1e\+06"):
         parse(text)
+
+
+# --- did you mean ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("text, name, state", [
+    ("theta'' = -g/L*sin(teta)", "teta", "theta"),      # a letter dropped
+    ("omega' = -k*omgea", "omgea", "omega"),            # two letters swapped
+    ("phi'' = -k*phii - c*phi'", "phii", "phi"),        # a letter doubled
+    ("x' = v; vel' = -k*x - c*veel", "veel", "vel"),    # in a system
+])
+def test_a_constant_named_like_a_state_is_refused_with_the_state(text, name, state):
+    err = refusal(text)
+    assert f"'{name}' is not a state: did you mean '{state}'?" in err.message
+    assert text[err.column - 1:].startswith(name)
+    assert f"--free {name}" in err.message  # how to keep it on purpose
+    # said on purpose (freed, fixed or an equation file's parameter), it stays a constant
+    assert name in parse(text, free=[name]).learnable
+    assert name in parse(text, fix={name: 1.0}).fixed
+    assert name in parse(text, declared=[name]).learnable
+
+
+@pytest.mark.parametrize("text", [
+    "theta'' = -w^2*(theta - theta0)",        # an indexed relative of the state
+    "beta'' = -zeta*beta' - eta*beta",        # Greek letters: both meant
+    "u' = a*u - b*u*v; v' = -c*v + d*u*v",    # one-letter names are too short to be typos
+    "x'' = -k*x - mu*x'",
+])
+def test_deliberate_names_near_a_state_are_kept(text):
+    s = parse(text)
+    assert s.learnable and s.hints == ()
+
+
+def test_a_constant_inside_sin_where_a_state_is_expected_gets_a_hint():
+    s = parse("x'' = -k*sin(y)")
+    assert s.learnable == ("k", "y")  # accepted: a hint, not a refusal
+    assert s.hints == ("'y' inside sin(...) is a constant to learn, not a state; "
+                       "if you meant the state x, write sin(x)",)
+    # an angle that is meant (an incline's), a state inside, or no states at all: no hint
+    assert parse("x'' = g*(sin(alpha) - mu*cos(alpha))", declared=["alpha", "mu"]).hints == ()
+    assert parse("x'' = -k*sin(x + a)").hints == ()
+    assert parse("x'' = -k*cos(x')").hints == ()
+
+
+def test_eqparse_stays_torch_free_with_the_typo_rules():
+    import subprocess
+    import sys
+    code = "import sys, fitode.eqparse.typos, fitode.eqparse; assert 'torch' not in sys.modules"
+    assert subprocess.run([sys.executable, "-c", code]).returncode == 0
