@@ -61,13 +61,21 @@ def test_nan_is_written_empty(tmp_path):
 @pytest.mark.slow  # a tiny fit, about 3 s
 def test_a_run_folder_holds_both_tables_equal_to_result_json(tmp_path):
     video = write_mp4(tmp_path / "glow.mp4", render_glow(decay_values(30, 10.0, 0.5), size=16), 10.0)
-    out = run_job(video, tmp_path / "run", eq="I' = -gamma*I", start=0.5, restarts=1, max_steps=5, window=8,
-                  stride=1, log=None)
+    lines: list[str] = []
+    # cos(a): a constant where a state is expected; the parser's hint is printed and kept (tests/test_eqparse.py)
+    out = run_job(video, tmp_path / "run", eq="I' = -gamma*I*cos(a)", start=0.5, restarts=1, max_steps=5,
+                  window=8, stride=1, log=lines.append)
     report = json.loads((out.out_dir / "result.json").read_text())
     assert {"estimates.csv", "track.csv"} <= set(report["files"])
-    est, = _rows((out.out_dir / "estimates.csv").read_text())
-    gamma = report["parameters"]["gamma"]
-    assert float(est["value"]) == gamma["value"] and est["verdict"] == gamma["verdict"]
+    hint = "'a' inside cos(...) is a constant to learn, not a state; if you meant the state I, write cos(I)"
+    assert f"hint: {hint}" in lines and hint in report["warnings"]
+    est = _rows((out.out_dir / "estimates.csv").read_text())
+    assert [e["constant"] for e in est] == list(report["parameters"]) == ["gamma", "a"]
+    for e in est:
+        p = report["parameters"][e["constant"]]
+        assert float(e["value"]) == p["value"]
+        assert e["std"] == ("" if p["std"] is None else repr(p["std"]))  # null in result.json: an empty cell
+        assert (e["verdict"], e["reason"], e["calibrated"]) == (p["verdict"], p["verdict_reason"], str(p["calibrated"]))
     track = _rows((out.out_dir / "track.csv").read_text())
     traj = report["trajectory"]
     assert len(track) == len(traj["time"]) == report["input"]["frames_used"]
