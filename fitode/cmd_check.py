@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import textwrap
 
-from fitode.describe import gauge_lines
+from fitode.describe import gauge_lines, hint_lines
 from fitode.errors import FitodeError
 from fitode.options import add_equation_arguments
 
@@ -101,7 +101,7 @@ def report_lines(system, spec, report) -> list[str]:
                 if p.unit:
                     bits.append(f"unit {p.unit}")
             out.append(f"  {n:<{width}}  {', '.join(bits)}".rstrip())
-    out += [f"hint: {h}" for h in system.hints]
+    out += hint_lines(system)
     if spec is not None:
         out.append(f"prior on the latent: N({_fmt(spec.prior_mean)}, {_fmt(spec.prior_std)}^2)"
                    + (f"; suggested stride {spec.stride}" if spec.stride else ""))

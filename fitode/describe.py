@@ -13,3 +13,8 @@ def gauge_lines(system) -> list[str]:
     except Exception:  # noqa: BLE001 - advice only: the symmetry test can fail on unusual equations
         return ["gauge: could not be analysed; the state is taken as the latent"]
     return ["gauge (the equation's state from the latent z):"] + [f"  {g.describe()}" for g in plan.values()]
+
+
+def hint_lines(system) -> list[str]:
+    """The parser's advice that stops nothing (a constant where a state is expected), one line each."""
+    return [f"hint: {h}" for h in system.hints]

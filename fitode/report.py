@@ -98,7 +98,8 @@ def understanding_lines(ode, spec, analysis, clip, plan) -> list[str]:
     units = spec.parameters if spec is not None else {}
     learn = [f"{n}" + (f" [{units[n].unit}]" if n in units and units[n].unit else "") for n in ode.learnable]
     lines.append(f"learnable: {', '.join(learn)}")
-    lines += [f"hint: {h}" for h in ode.hints]
+    from fitode.describe import hint_lines
+    lines += hint_lines(ode)
     if ode.fixed:
         lines.append("fixed: " + ", ".join(f"{k} = {v:.6g}" for k, v in ode.fixed.items()))
     lines.append(f"prior on the latent: N({plan.prior[0]:g}, {plan.prior[1]:g}^2)")

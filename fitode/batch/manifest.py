@@ -542,7 +542,7 @@ def _observe(value: Any, src: _Row) -> str | dict[str, str]:
 
 
 def _assignments(value: Any, src: _Row, key: str) -> dict[str, float]:
-    from fitode.options import parse_assignments  # --const/--init's own check
+    from fitode.names import parse_assignments  # --const/--init's own check
     try:
         return parse_assignments(_text(value, src, key), flag=key)
     except FitodeError as exc:
