@@ -38,6 +38,10 @@ class _Parser(argparse.ArgumentParser):
     def _check_flags(self, args: list[str]) -> None:
         if self._subparsers is not None:  # `fitode synth paper ...`: the sub-verb's parser checks its own flags
             return
+        if any(a.nargs == argparse.REMAINDER for a in self._actions):
+            # `fitode bench NAME --quick`: what follows the positionals is the benchmark's to check
+            first = next((i for i, a in enumerate(args) if not a.startswith("-")), len(args))
+            args = args[:first]
         known = [s for s in self._option_string_actions if s.startswith("--")]
         for arg in args:
             if arg == "--":
