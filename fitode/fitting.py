@@ -61,20 +61,26 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | None = None, system: 
     req = api.request(eq=eq, system=system, eq_file=eq_file, const=const, free=free, init=init, params=params,
                       prior=prior, train_fraction=train_fraction, observe=observe, calibrate=calibrate, **options)
     video = dict(fps=fps, start=start, end=end, roi=roi, size=size, color=color, stride=stride, mask=mask)
+    clip = None
     if isinstance(frames, (str, os.PathLike)):
-        frames, dt, time_offset = _read_path(frames, video, dt, time_offset, req, progress)
+        clip, dt, time_offset = _read_path(frames, video, dt, time_offset, req, progress)
+        frames = clip.frames
     else:
         given = [k for k in VIDEO_OPTIONS if video[k] not in (None, False)]
         if given:
             raise ConfigError(f"{', '.join(given)}: video options apply to a video path; frames given as an "
                               "array are used as they are (crop, resize or subsample them before)")
     x = api.as_frames(frames)
-    return api.execute(req, api.plan(req, x, dt), x, time_offset=time_offset, callback=callback,
-                       progress=progress)
+    result = api.execute(req, api.plan(req, x, dt), x, time_offset=time_offset, callback=callback,
+                         progress=progress)
+    if clip is not None:  # what was measured, in the video's pixels as `fitode VIDEO` writes it
+        from fitode.pipeline import source_measurement
+        source_measurement(result, clip)
+    return result
 
 
 def _read_path(path, video: dict[str, Any], dt, time_offset, req, progress: bool):
-    """frames, dt and time offset of a video path, read as `fitode VIDEO` reads it."""
+    """The clip, dt and time offset of a video path, read as `fitode VIDEO` reads it."""
     from fitode.pipeline import ReadOptions, read_clip
 
     if time_offset:
@@ -84,4 +90,4 @@ def _read_path(path, video: dict[str, Any], dt, time_offset, req, progress: bool
     if dt is not None and not (isinstance(dt, (int, float)) and math.isclose(dt, clip.dt, rel_tol=1e-6)):
         raise ConfigError(f"dt={dt!r} disagrees with the clip's {clip.dt:g} s (stride {clip.stride} / "
                           f"{clip.fps:g} fps); leave dt out for a path, or set fps")
-    return clip.frames, float(clip.dt), t0
+    return clip, float(clip.dt), t0

@@ -3,7 +3,7 @@
 run_video reads the video, says what it understood, fits, calibrates when asked, and writes
 an output folder: result.json (the report), fit.json (the full FitResult with every run's
 history, reloadable with FitResult.load), estimates.csv and track.csv (fitode.tables), latent.png,
-params.png, loss.png and frames.png.
+params.png, loss.png, frames.png and track.png (what was measured, drawn on the frames).
 An interrupted run (Ctrl-C) or one where every restart failed still leaves a folder, with
 result.json marked "incomplete" or "failed" and whatever plots its data allow.
 """
@@ -120,6 +120,7 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
         raise
 
     interrupted = bool(result.meta.get("interrupted"))
+    source_measurement(result, clip)
     for line in rep.run_lines(result):
         say(line)
     for line in (result.calibration or {}).get("lines", []):
@@ -135,6 +136,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     result.meta.update({"input": report["input"]})
     result.save(folder / "fit.json")
     report["warnings"] += _plots_for_result(folder, result, report, plots_done, t0)
+    warning = _try_plot(plot_track, folder / "track.png", result, clip, video, t0, plots_done=plots_done)
+    report["warnings"] += [warning] if warning else []
     from fitode.tables import write_run_tables
     report["files"] = sorted(["result.json", "fit.json", *plots_done, *write_run_tables(report, folder)])
     rep.write_json(report, folder / "result.json")
@@ -160,6 +163,53 @@ def read_clip(video: str | Path, read: ReadOptions = ReadOptions(), calibration:
         from fitode.calibrate import check_times
         check_times(calibration, t0, t0 + (n_frames - 1) * clip.dt, slack=0.5 * clip.dt)
     return clip, t0
+
+
+def source_measurement(result, clip) -> None:
+    """The measurement record of a fit on a clip's frames, mapped to the source video's pixels
+    (fitode.measurement), in place."""
+    from fitode.measurement import geometry, in_source_pixels
+    if result.meta.get("measurement") is not None:
+        result.meta["measurement"] = in_source_pixels(result.meta["measurement"], geometry(clip))
+
+
+STILLS = 4  # frames track.png draws on
+
+
+def plot_track(path: Path, result, clip, video, t0: float) -> Path:
+    """track.png: the measurement record on STILLS frames of the source at full resolution (the
+    clip's shrunk frames, enlarged, where the source cannot be read again), spread over the
+    stretch fitted (the whole clip where none was found)."""
+    import numpy as np
+
+    from fitode import plots
+    from fitode.measurement import geometry, readings
+
+    n = int(clip.frames.shape[0])
+    stretch = result.meta.get("stretch")
+    lo, hi = (int(stretch["start_frame"]), int(stretch["end_frame"])) if stretch else (0, n)
+    lo, hi = max(0, min(lo, n - 1)), max(1, min(hi, n))
+    idx = sorted({int(i) for i in np.linspace(lo, hi - 1, min(STILLS, hi - lo)).round()})
+    source = [int(clip.frame_indices[i]) for i in idx]
+    h, w = clip.source_size
+    try:
+        from fitode.video.stills import source_stills
+        got = source_stills(video, source)
+    except Exception:  # noqa: BLE001 - a picture falls back to the frames the fit had
+        got = {}
+    box = geometry(clip).box
+    stills = {}
+    for i, s in zip(idx, source):
+        if s in got:
+            stills[i] = (got[s], (-0.5, w - 0.5, h - 0.5, -0.5))
+        else:
+            img = np.asarray(clip.frames[i], dtype=float).transpose(1, 2, 0)
+            img = np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img
+            stills[i] = (np.clip(img, 0, 1), (box[0] - 0.5, box[0] + box[2] - 0.5, box[1] + box[3] - 0.5, box[1] - 0.5))
+    m = result.meta.get("measurement")
+    return plots.plot_track(path, m, stills, np.asarray(result.time) + t0,
+                            readings=readings(m, result.latent, result.rollout, result.states),
+                            stretch=stretch, train_frames=result.train_frames)
 
 
 def _read(video, **kw):
@@ -249,15 +299,17 @@ def _plots_for_result(folder: Path, result, report, plots_done: list[str], t0: f
         r["best"] = r["index"] == result.best
     estimates = {k: v["value"] for k, v in report["parameters"].items()}
     units = {k: v.get("unit") for k, v in report["parameters"].items()}
-    latent, rollout, ylabels = result.latent, result.rollout, None
+    latent, rollout, ylabels = result.latent, result.rollout, plots.state_labels(result)
     if result.calibration is not None:
         latent, rollout = np.asarray(result.calibration["latent"]), np.asarray(result.calibration["rollout"])
         ylabels = result.calibration["ylabels"]
+    shown = plots.params_view(result, report["parameters"])
     warnings = [
         _try_plot(plots.plot_latent, folder / "latent.png", result.time + t0, latent, rollout, result.train_frames,
                   result.states, window=int(result.settings.get("window", 0)) or None, ylabels=ylabels,
+                  angles=plots.angle_states(result), plots_done=plots_done),
+        _try_plot(plots.plot_params, folder / "params.png", runs, estimates, units=units, **shown,
                   plots_done=plots_done),
-        _try_plot(plots.plot_params, folder / "params.png", runs, estimates, units=units, plots_done=plots_done),
         _try_plot(plots.plot_loss, folder / "loss.png", runs, plots_done=plots_done),
     ]
     return [w for w in warnings if w]

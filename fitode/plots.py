@@ -31,7 +31,7 @@ def _colours(n: int) -> list:
 
 def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rollout: np.ndarray,
                 train_frames: int, states: Sequence[str], *, window: int | None = None,
-                ylabels: Sequence[str] | None = None) -> Path:
+                ylabels: Sequence[str] | None = None, angles: Sequence[str] = ()) -> Path:
     """Encoded latent (dots) and the physics rollout from the first frames (line), per state.
 
     The rollout starts from the first frames only and runs over the whole clip, so everything
@@ -39,7 +39,8 @@ def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rol
     shaded as extrapolation.
 
     ylabels: one axis label per state, for a calibrated latent (its values in physical units);
-    None labels every axis in latent units (see `latent_label`).
+    None labels every axis in latent units (see `latent_label`). angles: the states that are an
+    angle in radians, which get a second axis in degrees.
     """
     plt = _plt()
     t = np.asarray(time, dtype=float)
@@ -61,6 +62,8 @@ def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rol
             ax.axvline(t[window - 1], color="tab:green", lw=0.8, ls=":",
                        label=f"end of the first {window}-frame window: the rollout after it is a prediction")
         ax.set_ylabel(ylabels[i] if ylabels else latent_label(states[i]))
+        if states[i] in angles:
+            ax.secondary_yaxis("right", functions=(np.degrees, np.radians)).set_ylabel("degrees")
         ax.grid(alpha=0.3)
         if not finite.all():
             ax.text(0.99, 0.03, "rollout left the finite range", transform=ax.transAxes, ha="right",
@@ -78,6 +81,54 @@ def latent_label(state: str) -> str:
     return f"{state}\nlatent units (not calibrated)"
 
 
+def state_labels(result) -> list[str]:
+    """The axis label of each state of a FitResult's latent (uncalibrated): its own units where the
+    observation measured it in them (radians for an angle), else latent units, saying what the
+    latent is affine in where a measured model read it."""
+    m = result.meta.get("measurement") or {}
+    readings = m.get("states") or {}
+    out = []
+    for s in result.states:
+        how = readings.get(s)
+        if result.meta.get("physical_units"):
+            out.append(f"{s} (radians)" if how == "angle" else f"{s}\nmeasured, in its own units")
+        elif result.meta.get("measured") and how:
+            out.append(f"{latent_label(s)}:\naffine in the {how} measured")
+        else:
+            out.append(latent_label(s))
+    return out
+
+
+def angle_states(result) -> list[str]:
+    """The states of a FitResult that are an angle in radians (an angle observation's)."""
+    readings = (result.meta.get("measurement") or {}).get("states") or {}
+    return [s for s in result.states if readings.get(s) == "angle" and result.meta.get("physical_units")]
+
+
+def params_view(result, parameters: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+    """plot_params' keywords for a FitResult and result.json's "parameters": every curve in the
+    units of its estimate (a calibrated constant's history, learned in latent units, times the
+    calibration's conversion), the runs each estimate comes from, and labels that say the units."""
+    converted = ((result.calibration or {}).get("constants") or {})
+    factors, labels, in_estimate, own = {}, {}, {}, []
+    for name, p in parameters.items():
+        c = converted.get(name) or {}
+        if c.get("converted") and c.get("before"):
+            factors[name] = float(c["after"]) / float(c["before"])
+        unit = f" [{p['unit']}]" if p.get("unit") else ""
+        if p.get("calibrated"):
+            labels[name] = f"{name}{unit}\ncalibrated (curves converted)"
+        elif p.get("latent_units"):
+            labels[name] = f"{name}\nlatent units (not calibrated)"
+        else:
+            labels[name] = f"{name}{unit}"
+        if p.get("best_run_only"):
+            in_estimate[name], own = [int(result.best)], own + [name]
+        else:
+            in_estimate[name] = [int(i) for i in result.selected]
+    return {"factors": factors, "labels": labels, "in_estimate": in_estimate, "own_units": own}
+
+
 def _limits(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     a = a[np.isfinite(a)]
     if a.size == 0:
@@ -92,48 +143,73 @@ def _limits(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
 
 
 def plot_params(path: str | Path, runs: Sequence[Mapping[str, Any]], estimates: Mapping[str, float],
-                *, units: Mapping[str, str | None] | None = None, truth: Mapping[str, float] | None = None) -> Path:
+                *, units: Mapping[str, str | None] | None = None, truth: Mapping[str, float] | None = None,
+                factors: Mapping[str, float] | None = None, in_estimate: Mapping[str, Sequence[int]] | None = None,
+                labels: Mapping[str, str] | None = None, own_units: Sequence[str] = ()) -> Path:
     """Each constant's trajectory over training for every restart (log-scaled steps), the paper's
-    robustness figure: the estimate as a black line, failed runs dashed and ended with a red x,
-    runs left out of the estimate drawn faint."""
+    robustness figure: the estimate as a black line, the restarts it comes from drawn bold and ended
+    with a dot, the others faint, failed runs dashed and ended with a red x.
+
+    factors: what each constant's history is multiplied by to be in the estimate's units (a
+    calibration's conversion: the histories are in the latent's units); in_estimate: per constant,
+    the run indices the estimate comes from (default: the runs marked selected); labels: a full
+    y-axis label per constant (default: name [unit]); own_units: constants whose restarts each read
+    the measured path in units of their own, so that only the estimate's runs are in its units: the
+    others stay faint and out of the y range, and the panel says so."""
     plt = _plt()
     names = _constant_names(runs) or list(estimates)
     n = max(len(names), 1)
-    fig, axes = plt.subplots(n, 1, figsize=(8, 2.7 * n + 0.6), sharex=True, squeeze=False)
+    fig, axes = plt.subplots(n, 1, figsize=(8, 2.9 * n + 0.6), sharex=True, squeeze=False)
     colours = _colours(len(runs))
     for ax, name in zip(axes[:, 0], names):
+        factor = (factors or {}).get(name, 1.0)
+        chosen = None if in_estimate is None or name not in in_estimate else set(in_estimate[name])
         for run, c in zip(runs, colours):
             steps, vals = _series(run, name)
             if steps.size == 0:
                 continue
+            vals = vals * factor
             failed = run.get("status") not in ("ok", "ended", "running", "interrupted")
-            faint = run.get("selected") is False and not failed
-            ax.plot(steps, vals, "--" if failed else "-", color=c, lw=1.2, alpha=0.35 if faint else 0.95,
-                    label=f"run {run.get('index', 0) + 1} (init {_fmt(_init(run, name, vals))})" + (" failed" if failed else ""))
+            used = run.get("selected") is not False if chosen is None else run.get("index", 0) in chosen
+            faint = not used and not failed
+            ax.plot(steps, vals, "--" if failed else "-", color=c, lw=1.8 if used and not failed else 1.0,
+                    alpha=0.3 if faint else 0.95,
+                    label=f"run {run.get('index', 0) + 1} (init {_fmt(_init(run, name, vals) * factor)})"
+                    + (" failed" if failed else " in the estimate" if used and chosen is not None else ""))
             if failed:
                 ax.plot(steps[-1], vals[-1], "x", color="tab:red", ms=8, mew=2)
+            elif used and chosen is not None:
+                ax.plot(steps[-1], vals[-1], "o", color=c, ms=6, mec="k", mew=0.8)
         if name in estimates and estimates[name] is not None and math.isfinite(estimates[name]):
             ax.axhline(estimates[name], color="k", lw=1.3, label=f"estimate {_fmt(estimates[name])}")
         if truth and name in truth:
             ax.axhline(truth[name], color="k", lw=1, ls=":", label=f"truth {_fmt(truth[name])}")
         unit = (units or {}).get(name)
-        ax.set_ylabel(f"{name}" + (f" [{unit}]" if unit else ""))
+        ax.set_ylabel((labels or {}).get(name) or f"{name}" + (f" [{unit}]" if unit else ""), fontsize=9)
         ax.set_xscale("log")
-        _robust_ylim(ax, runs, name, estimates.get(name))
+        _robust_ylim(ax, runs, name, estimates.get(name), factor, chosen if name in own_units else None)
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=7, loc="best", ncol=2, framealpha=0.85)
+        if name in own_units:
+            ax.set_title(_wrap(f"each restart reads the measured path in units of its own, so {name} differs between "
+                               "them by that alone: the estimate is the bold run's; the faint ones are in other units",
+                               110), fontsize=7, loc="left")
     axes[-1, 0].set_xlabel("training step")
-    axes[0, 0].set_title("constants during training, every restart")
+    fig.suptitle("constants during training, every restart", fontsize=11)
     return _save(fig, path)
 
 
-def _robust_ylim(ax, runs, name: str, estimate: float | None) -> None:
-    """Keep a wild early excursion of one run from flattening every other curve."""
+def _robust_ylim(ax, runs, name: str, estimate: float | None, factor: float = 1.0,
+                 chosen: set | None = None) -> None:
+    """Keep a wild early excursion of one run from flattening every other curve; where the
+    estimate comes from some runs only, the others may leave the view (they are in other units)."""
     ends = []
     allv = []
     for run in runs:
+        if chosen is not None and run.get("index", 0) not in chosen:
+            continue
         _, v = _series(run, name)
-        v = v[np.isfinite(v)]
+        v = v[np.isfinite(v)] * factor
         if v.size:
             ends.append(v[-1])
             allv.append(v)
@@ -233,3 +309,197 @@ def _save(fig, path: str | Path) -> Path:
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path
+
+
+# ---------------------------------------------------------------------------------------------
+# track.png: what was measured, drawn on the frames
+
+REGION_LABEL = {"any": "where the frames change", "brightness": "where the light changes most"}
+NO_PLACE = {
+    "any": "a free latent: the encoder learns its own reading of the whole frame, so there is no point, line "
+           "or angle to draw here (latent.png shows the latent over time). The yellow box: where the frames change.",
+    "brightness": "brightness: the light of the frames, decoded to linear light, read as a whole; the yellow box "
+                  "holds the pixels whose light changes most. Its value over time is in latent.png.",
+}
+
+
+def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: Mapping[int, tuple[np.ndarray, Sequence[float]]],
+               time: Sequence[float], *, readings: Sequence[Any] = (), stretch: Mapping[str, Any] | None = None,
+               train_frames: int | None = None) -> Path:
+    """Sample frames with what was measured drawn on them, and each measured reading over time.
+
+    measurement: the record of result.json's "measurement" (source pixels); stills: {frame of the
+    clip: (RGB image, imshow extent [left, right, bottom, top] in source pixels)}; time: (T,) the
+    time of every frame of the clip; readings: fitode.measurement.readings (measured and fitted
+    reading per state); stretch: the stretch record (frames of the clip, end exclusive), shaded.
+    """
+    plt = _plt()
+    m = dict(measurement or {})
+    t = np.asarray(time, dtype=float)
+    idx = sorted(stills)
+    track = _xy(m.get("track"), len(t))
+    fitted = next((r.points for r in readings if r.points is not None), None)
+    n_rows = 1 + len(readings)
+    per = 3.6 if len(idx) <= 3 else 3.0
+    fig = plt.figure(figsize=(max(per * max(len(idx), 1), 8.5), 3.9 + 2.3 * len(readings) + 0.5))
+    grid = fig.add_gridspec(n_rows, max(len(idx), 1), height_ratios=[1.7] + [1.0] * len(readings))
+    view = _view(m, track, fitted, stills)
+    inside = _in_stretch(stretch, len(t))
+    for k, i in enumerate(idx):
+        ax = fig.add_subplot(grid[0, k])
+        img, extent = stills[i]
+        ax.imshow(img, extent=tuple(extent), interpolation="nearest" if img.shape[1] < 200 else "antialiased")
+        _draw_measurement(ax, m, track, fitted, i, inside)
+        if view is not None:
+            ax.set_xlim(view[0], view[2])
+            ax.set_ylim(view[3], view[1])
+        where = "" if stretch is None else ("  (in the stretch)" if inside[i] else "  (outside the stretch)")
+        ax.set_title(f"t = {t[i]:.2f} s, frame {i}{where}", fontsize=8)
+        ax.tick_params(labelsize=6)
+        if k == 0:
+            ax.set_ylabel("y (source pixels)", fontsize=7)
+        ax.set_xlabel("x (source pixels)", fontsize=7)
+    if idx:
+        handles, labels = fig.axes[0].get_legend_handles_labels()
+        if handles:
+            fig.axes[0].legend(handles, labels, loc="lower left", bbox_to_anchor=(0.0, 1.12), ncol=3, fontsize=7,
+                               frameon=False)
+    for row, reading in enumerate(readings, start=1):
+        ax = fig.add_subplot(grid[row, :])
+        ax.plot(t, reading.measured, ".", ms=3, color="tab:blue", label="measured")
+        ok = np.isfinite(reading.fitted)
+        ax.plot(t[ok], reading.fitted[ok], "-", lw=1.3, color="tab:orange", label="the equation's fitted trajectory")
+        _shade_stretch(ax, t, stretch, train_frames)
+        for i in idx:
+            ax.axvline(t[i], color="0.5", lw=0.6, ls=":")
+        lo, hi = _limits(reading.measured, reading.fitted[ok])
+        ax.set_ylim(lo, hi)
+        ax.set_ylabel(f"{reading.state}: {reading.label}", fontsize=8)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="best", framealpha=0.85)
+        if row == n_rows - 1:
+            ax.set_xlabel("time (s)")
+    kind = m.get("kind", "none")
+    text = NO_PLACE.get(kind) if not readings else None
+    if not m:
+        text = "the observation model recorded nothing to draw on the frames"
+    title = f"what was measured ({kind}{', ' + _states_text(m) if m.get('states') and kind not in NO_PLACE else ''})"
+    fig.suptitle(title + ("\n" + _wrap(text) if text else ""), fontsize=9)
+    return _save(fig, path)
+
+
+def _states_text(m: Mapping[str, Any]) -> str:
+    return "; ".join(f"{s} read as {how}" for s, how in m["states"].items())
+
+
+def _wrap(text: str, width: int = 120) -> str:
+    import textwrap
+    return "\n".join(textwrap.wrap(text, width))
+
+
+def _xy(points, n: int) -> np.ndarray:
+    xy = np.full((n, 2), np.nan)
+    for i, p in enumerate((points or [])[:n]):
+        if p is not None:
+            xy[i] = p
+    return xy
+
+
+def _in_stretch(stretch: Mapping[str, Any] | None, n: int) -> np.ndarray:
+    inside = np.ones(n, dtype=bool)
+    if stretch:
+        inside[:] = False
+        inside[max(int(stretch["start_frame"]), 0): min(int(stretch["end_frame"]), n)] = True
+    return inside
+
+
+def _shade_stretch(ax, t: np.ndarray, stretch: Mapping[str, Any] | None, train_frames: int | None) -> None:
+    if stretch:
+        a, b = int(stretch["start_frame"]), min(int(stretch["end_frame"]), len(t)) - 1
+        if 0 <= a <= b:
+            ax.axvspan(t[a], t[b], color="tab:green", alpha=0.12, zorder=0,
+                       label=f"the stretch fitted ({stretch.get('source', 'found')})")
+    if train_frames is not None and 0 < train_frames < len(t):
+        ax.axvspan(t[train_frames], t[-1], color="0.85", zorder=0, label="not trained on")
+
+
+def _view(m: Mapping[str, Any], track: np.ndarray, fitted, stills) -> tuple[float, float, float, float] | None:
+    """The part of the frame to show: what was drawn, with a margin, in a shape no narrower than
+    1:2 (a fall is a tall, thin path); None: the whole frame."""
+    xs, ys = [], []
+    for pts in (track, fitted):
+        if pts is not None:
+            ok = np.isfinite(pts).all(axis=1)
+            xs += list(pts[ok, 0])
+            ys += list(pts[ok, 1])
+    if not xs and m.get("pivot") is None:  # nothing but a region: the whole frame says more
+        return None
+    if m.get("region"):
+        x0, y0, x1, y1 = m["region"]
+        xs += [x0, x1]
+        ys += [y0, y1]
+    if m.get("pivot") is not None:
+        xs.append(m["pivot"][0])
+        ys.append(m["pivot"][1])
+    if not xs or not stills:
+        return None
+    left, right, bottom, top = next(iter(stills.values()))[1]
+    w_img, h_img = right - left, bottom - top
+    x0, x1, y0, y1 = min(xs), max(xs), min(ys), max(ys)
+    w, h = max(x1 - x0, 1.0), max(y1 - y0, 1.0)
+    w, h = max(w, 0.5 * h, 0.05 * w_img), max(h, 0.5 * w, 0.05 * h_img)
+    cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+    w, h = 1.4 * w, 1.4 * h
+    if w >= 0.8 * w_img and h >= 0.8 * h_img:
+        return None
+    # a pivot above the frame stays in view; otherwise keep to the frame
+    lo_y = min(top, cy - h / 2) if m.get("pivot") is not None else top
+    return (max(left, cx - w / 2), max(lo_y, cy - h / 2), min(right, cx + w / 2), min(bottom, cy + h / 2))
+
+
+def _draw_measurement(ax, m: Mapping[str, Any], track: np.ndarray, fitted, i: int, inside: np.ndarray) -> None:
+    crop = m.get("crop")
+    size = m.get("source_size")
+    if crop and size and (crop[2] < size[0] - 8 or crop[3] < size[1] - 8):
+        ax.add_patch(_rect(crop[0] - 0.5, crop[1] - 0.5, crop[0] + crop[2] - 0.5, crop[1] + crop[3] - 0.5,
+                           "white", ":", "the crop read (--roi)"))
+    if m.get("region"):
+        ax.add_patch(_rect(*m["region"], "yellow", "-", REGION_LABEL.get(m.get("kind"), "the region measured")))
+    if m.get("line"):
+        p0, d = np.asarray(m["line"]["point"], float), np.asarray(m["line"]["direction"], float)
+        ok = np.isfinite(track).all(axis=1)
+        along = (track[ok] - p0) @ d if ok.any() else np.array([-50.0, 50.0])
+        span = np.array([along.min(), along.max()]) + np.array([-0.15, 0.15]) * max(np.ptp(along), 10.0)
+        ends = p0 + span[:, None] * d
+        ax.plot(ends[:, 0], ends[:, 1], "--", color="cyan", lw=0.9, label="the line of motion")
+    if np.isfinite(track).any():
+        ax.plot(track[:, 0], track[:, 1], "-", color="white", lw=0.7, alpha=0.5)
+        shown = np.where(inside[:, None], track, np.nan)
+        ax.plot(shown[:, 0], shown[:, 1], "-", color="lime", lw=1.0, alpha=0.9, label="the tracked path")
+    if fitted is not None and np.isfinite(fitted).any():
+        ax.plot(fitted[:, 0], fitted[:, 1], "--", color="tab:orange", lw=1.1, label="the equation's trajectory")
+        if np.isfinite(fitted[i]).all():
+            ax.plot(*fitted[i], "x", color="tab:orange", ms=8, mew=2)
+    if m.get("pivot") is not None:
+        px, py = m["pivot"]
+        ax.plot(px, py, "P", color="magenta", ms=9, label="the fitted pivot")
+        if np.isfinite(track[i]).all():
+            ax.plot([px, track[i, 0]], [py, track[i, 1]], "-", color="magenta", lw=1.0)
+            ax.plot([px, px], [py, py + (m.get("radius") or np.hypot(*(track[i] - (px, py))))], ":",
+                    color="magenta", lw=0.8)
+        if m.get("radius"):
+            a = np.linspace(0, 2 * np.pi, 200)
+            ax.plot(px + m["radius"] * np.sin(a), py + m["radius"] * np.cos(a), "-", color="magenta", lw=0.5,
+                    alpha=0.4, label=f"radius {m['radius']:.0f} px")
+    radii = m.get("radii")
+    if radii and i < len(radii) and radii[i] is not None and np.isfinite(track[i]).all():
+        a = np.linspace(0, 2 * np.pi, 100)
+        ax.plot(track[i, 0] + radii[i] * np.cos(a), track[i, 1] + radii[i] * np.sin(a), "-", color="red", lw=1.0,
+                label="the apparent radius")
+    if np.isfinite(track[i]).all():
+        ax.plot(*track[i], "o", mfc="none", mec="red", ms=9, mew=1.6, label="measured in this frame")
+
+
+def _rect(x0: float, y0: float, x1: float, y1: float, colour: str, style: str, label: str):
+    from matplotlib.patches import Rectangle
+    return Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec=colour, ls=style, lw=1.2, label=label)

@@ -218,6 +218,7 @@ def complete_report(report: dict[str, Any], result, analysis, t0: float = 0.0) -
     }
     report["calibration"] = ({k: v for k, v in result.calibration.items() if k not in ("latent", "rollout", "lines")}
                              if result.calibration is not None else None)
+    report["measurement"] = to_jsonable(result.meta.get("measurement"))
     report["warnings"] = list(result.warnings) + report.get("warnings", [])
     report["notes"] = list(result.notes)
     report["status"] = "complete"

@@ -131,7 +131,7 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
         meta={"interrupted": interrupted, "plan": plan.to_dict(), "measured": observation.measured,
               "physical_units": observation.fixes_scale(), "subspace": prepared.note, "rank": prepared.rank,
               "gauge": {s: g.describe() for s, g in gauges.items()}, "own_units": sorted(own_units),
-              "left_out": fit.left_out},
+              "left_out": fit.left_out, "measurement": prepared.drawing},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},
     )
 

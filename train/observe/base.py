@@ -18,7 +18,7 @@ instance, as PySINDy's estimator accepts its parts.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 import torch
@@ -43,6 +43,8 @@ class Prepared:
     note: str  # one line: the subspace kept and why
     caution: str | None = None  # a reason the measurement may be off (an object too small), for the verdict
     states: tuple[str, ...] | None = None  # the state each input column measures; None: a latent the encoder learns
+    # what was measured, to draw on the frames (drawing.py's record; FitResult.meta["measurement"])
+    drawing: dict[str, Any] | None = None
 
     def in_order(self, states: Sequence[str]) -> "Prepared":
         """The measured columns in the equation's state order, checked: a model may measure its
@@ -84,7 +86,11 @@ class ObservationModel:
     def prepare(self, frames: torch.Tensor, architecture: str = "mlp", fit_frames: int | None = None) -> Prepared:
         """Raw float frames (T, C, H, W) -> what the encoder reads. The principal components come
         from the first fit_frames frames (the training range) only."""
-        return Prepared(*signal_subspace(frames, architecture, fit_frames, self.subspace))
+        from .drawing import record, region_of_change
+        # a free latent has no place in the image: the record says only where the frames change
+        return Prepared(*signal_subspace(frames, architecture, fit_frames, self.subspace),
+                        drawing=record(self.name, region=region_of_change(frames, fit_frames),
+                                       states={s: self.name for s in self.equation_states or ()} or None))
 
     def encoder(self, architecture: str, in_shape: tuple[int, int, int], dim: int, seeds,
                 output_mean: float = 0.0, output_std: float = 1.0) -> torch.nn.Module:
@@ -155,8 +161,14 @@ class MeasuredObservation(ObservationModel):
             w.copy_(torch.where(own, torch.where(w >= 0, 1.0, -1.0) * output_std, torch.zeros_like(w)))
         return enc
 
-    def column(self, z: torch.Tensor, components: np.ndarray, note: str, caution: str | None = None) -> Prepared:
+    def column(self, z: torch.Tensor, components: np.ndarray, note: str, caution: str | None = None,
+               drawing: dict[str, Any] | None = None) -> Prepared:
         """One measured column (T,) as the equation's first state (the one a single-state
-        equation has)."""
+        equation has); drawing: what was measured (drawing.py), its "states" filled in here."""
         states = self.equation_states[:1] if self.equation_states else None
-        return Prepared(z.reshape(-1, 1, 1, 1), components, 1, note, caution, states)
+        if drawing is not None:
+            drawing = dict(drawing)
+            reading = drawing.pop("reading", drawing["kind"])
+            if states:
+                drawing["states"] = {states[0]: reading}
+        return Prepared(z.reshape(-1, 1, 1, 1), components, 1, note, caution, states, drawing)

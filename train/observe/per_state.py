@@ -42,7 +42,7 @@ class PerStateObservation(MeasuredObservation):
         return False if check == "perspective" else super().applies(check)
 
     def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
-        columns, notes, cautions, components = [], [], [], None
+        columns, notes, cautions, components, drawings = [], [], [], None, []
         for state, model in self.parts.items():
             one = model.prepare(frames, architecture, fit_frames)
             if tuple(one.inputs.shape[1:]) != (1, 1, 1):
@@ -53,9 +53,26 @@ class PerStateObservation(MeasuredObservation):
             if one.caution:
                 cautions.append(f"{state}: {one.caution}")
             components = one.components if components is None else components
+            drawings.append((state, one.drawing))
         inputs = torch.stack(columns, dim=1).reshape(len(columns[0]), len(columns), 1, 1)
         return Prepared(inputs, components, len(columns), "; ".join(notes), "; ".join(cautions) or None,
-                        tuple(self.parts))
+                        tuple(self.parts), _merged(self.name, drawings))
 
     def describe(self) -> str:
         return "; ".join(f"{s}: {m.describe()}" for s, m in self.parts.items())
+
+
+def _merged(name: str, drawings: list) -> dict | None:
+    """One drawing of every state's (state, drawing): each key from the first state's model that
+    has it (two states that read one object, x=position;y=size, share its track), and what each
+    state read (a part's model names only the equation's first state: it measures one column)."""
+    parts = [(s, d) for s, d in drawings if d]
+    if not parts:
+        return None
+    out: dict = {"kind": name}
+    for _, d in parts:
+        for key, value in d.items():
+            out.setdefault(key, value)
+    out["kind"] = name
+    out["states"] = {s: next(iter(d.get("states", {}).values()), d["kind"]) for s, d in parts}
+    return out

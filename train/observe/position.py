@@ -9,6 +9,7 @@ import torch
 from fitode.errors import ConfigError
 
 from .base import MeasuredObservation, ObservationModel, Prepared
+from .drawing import points, record
 from .tracking import MENDED_MAX, centroids, line_of_motion, mend_one_way
 
 
@@ -53,7 +54,10 @@ class PositionObservation(MeasuredObservation):
             if mended > MENDED_MAX * n_fit:
                 caution = (f"{mended} of {n_fit} frames had a centroid off the path of their neighbours and were read "
                            "from them: something else changes in the view as much as the object; give --roi around it")
-        return self.column(z.to(frames.dtype), out.components, note, caution)
+        drawing = record(self.name, reading="line", track=points(xy),
+                         line={"point": [float(v) for v in xy[:n_fit].mean(dim=0)],
+                               "direction": [float(v) for v in direction]})
+        return self.column(z.to(frames.dtype), out.components, note, caution, drawing)
 
     def reread(self, prepared: Prepared, state: np.ndarray, perspective: dict, fit_frames: int) -> Prepared | None:
         """The path read through the camera's perspective that perspective.perspective_check found on a

@@ -7,6 +7,7 @@ import torch
 from fitode.errors import ConfigError
 
 from .base import MeasuredObservation, ObservationModel, Prepared
+from .drawing import points, record
 from .extent import SMALL, apparent_radii
 
 
@@ -24,7 +25,7 @@ class SizeObservation(MeasuredObservation):
 
     def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
         out = ObservationModel.prepare(self, frames, architecture, fit_frames)  # the components the checks score against
-        radius, _, unseen = apparent_radii(frames)
+        radius, centre, unseen = apparent_radii(frames)
         if unseen > 0.1 * frames.shape[0]:
             raise ConfigError(f"the {self.name} observation sees no outline change in {unseen} of {frames.shape[0]} "
                               "frames (the object keeps its size); trim the clip to the motion (--start/--end) or "
@@ -43,7 +44,11 @@ class SizeObservation(MeasuredObservation):
             caution = (f"the object is {smallest:.1f} pixels in radius at its smallest, and the blur shrinks a "
                        f"measured radius under {SMALL:g} pixels (by 15-20% at 2): give a larger --size or "
                        "--roi around the object")
-        return self.column(z.to(frames.dtype), out.components, note, caution)
+        reach = radius[:, None].clamp_min(0)
+        lo, hi = (centre - reach).min(dim=0).values, (centre + reach).max(dim=0).values
+        drawing = record(self.name, reading="radius" if self.name == "size" else "1/radius", track=points(centre),
+                         radii=[float(r) for r in radius], region=[float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])])
+        return self.column(z.to(frames.dtype), out.components, note, caution, drawing)
 
 
 class DistanceObservation(SizeObservation):
