@@ -1,0 +1,123 @@
+"""What was measured, drawn on the frames: the measurement record in source pixels (fitode.measurement),
+track.png, and plots labelled in the estimate's units."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from fitode.eqparse import parse
+from fitode.examples.make_example import decay_values, render_glow, write_mp4
+from fitode.measurement import geometry, in_source_pixels, readings
+from fitode.pipeline import ReadOptions, read_clip, run_job
+
+SOURCE = (240, 320)  # (H, W) of the generated source frames
+ROI = (24, 12, 280, 216)  # x, y, w, h: read at 64 pixels on the short side, 3.4 source pixels per frame pixel
+
+
+def disc_clip(path: Path, centres: np.ndarray, radii: np.ndarray, seed: int = 0) -> Path:
+    """A dark disc on a light, noisy, textured wall at the given sub-pixel centres and radii, as a .npy source."""
+    rng = np.random.default_rng(seed)
+    wall = 190 + 20 * cv2.GaussianBlur(rng.standard_normal(SOURCE), (0, 0), 6)
+    frames = []
+    for (x, y), r in zip(centres, radii):
+        ys, xs = np.mgrid[:SOURCE[0], :SOURCE[1]]
+        cover = np.clip(r + 0.5 - np.hypot(xs - x, ys - y), 0, 1)  # anti-aliased edge
+        img = wall * (1 - cover) + 40 * cover + rng.normal(0, 2, SOURCE)
+        frames.append(np.clip(img, 0, 255).astype(np.uint8))
+    np.save(path, np.stack(frames))
+    return path
+
+
+def measured(path: Path, model, equation: str, **read):
+    clip, _ = read_clip(path, ReadOptions(fps=30.0, stride=1, **read))
+    model.bind(parse(equation))
+    prepared = model.prepare(torch.as_tensor(clip.frames), "linear")
+    return clip, prepared, in_source_pixels(prepared.drawing, geometry(clip))
+
+
+def test_a_position_is_recorded_in_source_pixels_through_the_crop_and_the_resize(tmp_path):
+    from fitode.train.observe import PositionObservation
+    t = np.arange(60) / 30.0
+    centres = np.stack([70 + 40 * t ** 2, 50 + 25 * t ** 2], axis=1)  # accelerating along a known line, inside the crop
+    path = disc_clip(tmp_path / "slide.npy", centres, np.full(len(t), 9.0))
+    clip, prepared, m = measured(path, PositionObservation(), "x'' = a", roi=ROI)
+    assert clip.size != SOURCE and geometry(clip).scale[0] > 3  # measured on shrunk frames
+    assert prepared.drawing["space"] == "frames" and m["space"] == "source"
+    track = np.array(m["track"])
+    error = np.hypot(*(track - centres).T)
+    assert error.max() < 1.5 and np.median(error) < 0.8, error  # within a pixel or so of the truth
+    d = np.array(m["line"]["direction"])
+    truth = np.array([40.0, 25.0]) / np.hypot(40, 25)
+    assert abs(abs(d @ truth) - 1) < 1e-3
+    assert m["states"] == {"x": "line"} and m["crop"] == list(geometry(clip).box)
+    assert m["source_size"] == [SOURCE[1], SOURCE[0]]
+    # the fitted trajectory drawn on the image: a latent affine in the path maps back onto it
+    z = (track - track.mean(axis=0)) @ d * -0.37 + 2.0
+    (reading,) = readings(m, z[:, None], z[:, None], ["x"])
+    assert np.abs(reading.points - centres).max() < 1.5
+
+
+def test_a_size_is_recorded_with_its_radii_in_source_pixels(tmp_path):
+    from fitode.train.observe import SizeObservation
+    radii = np.linspace(10, 40, 50)
+    centres = np.tile([[150.0, 118.0]], (50, 1))
+    path = disc_clip(tmp_path / "grow.npy", centres, radii)
+    _, _, m = measured(path, SizeObservation(), "r' = k*r")
+    got = np.array(m["radii"])
+    assert np.median(np.abs(got[2:-2] - radii[2:-2])) < 1.5, got - radii
+    assert np.hypot(*(np.array(m["track"])[5] - centres[5])) < 1.5
+    x0, y0, x1, y1 = m["region"]
+    assert x0 < 150 - 38 and x1 > 150 + 38 and y0 < 118 - 38 and y1 > 118 + 38
+
+
+def test_a_free_latent_records_only_where_the_frames_change():
+    from fitode.train.observe import ObservationModel
+    frames = torch.zeros(20, 1, 16, 16)
+    frames[:, 0, 4:8, 10:14] = torch.linspace(0, 1, 20)[:, None, None]
+    model = ObservationModel()
+    model.bind(parse("x'' = -w*x"))
+    d = model.prepare(frames).drawing
+    assert d["kind"] == "any" and "track" not in d
+    assert d["region"] == [9.5, 3.5, 13.5, 7.5]
+
+
+def test_track_png_says_when_there_is_no_place_to_draw(tmp_path, monkeypatch):
+    from fitode import plots
+    titles = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: titles.append(fig._suptitle.get_text()) or Path(path))
+    img = np.zeros((16, 16, 3))
+    plots.plot_track(tmp_path / "t.png", {"kind": "any", "region": [2, 2, 9, 9]}, {0: (img, (-0.5, 15.5, 15.5, -0.5))},
+                     np.arange(3) * 0.1)
+    assert "no point, line or angle to draw" in titles[0]
+
+
+@pytest.fixture(scope="module")
+def glow(tmp_path_factory) -> Path:
+    return write_mp4(tmp_path_factory.mktemp("glow") / "glow.mp4", render_glow(decay_values(40, 10.0, 0.5), size=16), 10.0)
+
+
+def test_a_calibrated_run_writes_track_png_and_labels_its_plots_in_physical_units(glow, tmp_path, monkeypatch):
+    from fitode import plots
+    labels: dict[str, list[str]] = {}
+    save = plots._save
+
+    def keep(fig, path):
+        labels[Path(path).name] = [ax.get_ylabel() for ax in fig.axes]
+        return save(fig, path)
+    monkeypatch.setattr(plots, "_save", keep)
+    out = run_job(glow, tmp_path / "c", eq="I' = -gamma*I + c", calibrate="I(0)=1; I(3.5)=0.3", log=None,
+                  restarts=2, max_steps=10, window=8, stride=1)
+    assert "track.png" in out.report["files"] and (out.out_dir / "track.png").stat().st_size > 1000
+    assert out.report["measurement"]["kind"] == json.loads((out.out_dir / "result.json").read_text())["measurement"]["kind"]
+    assert all("calibrated" in label for label in labels["latent.png"])
+    cal = out.report["parameters"]["c"]
+    assert cal["calibrated"]
+    c_label = [label for label in labels["params.png"] if label.startswith("c")]
+    assert c_label and "calibrated" in c_label[0]
+    g_label = [label for label in labels["params.png"] if label.startswith("gamma")]
+    assert g_label and "latent" not in g_label[0]  # a rate is the same in every unit
