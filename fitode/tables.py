@@ -3,7 +3,9 @@
 estimates.csv: one row per learnable constant, ESTIMATE_COLUMNS.
 track.csv: one row per frame used: time_s (video seconds), frame (index in the source video),
 then per state S: S (the latent, or the calibrated value in physical units when --calibrate was
-applied), S_fit (the equation's rollout), S_residual (S - S_fit).
+applied), S_fit (the equation's rollout), S_residual (S - S_fit), then what was measured in the
+source video's pixels where result.json's "measurement" has it (MEASURED_COLUMNS: the tracked
+point x_px, y_px; the apparent radius radius_px).
 
 Both are read from the report alone, so their numbers are result.json's numbers (floats written
 with repr, which round-trips exactly); nothing here judges or recomputes an estimate.
@@ -50,9 +52,28 @@ def estimates_csv(report: Mapping[str, Any]) -> str:
     return csv_text(ESTIMATE_COLUMNS, estimate_rows(report.get("parameters") or {}))
 
 
-def track_header(states: Iterable[str]) -> list[str]:
+# result.json "measurement" key -> its columns in track.csv (source pixels, one value per frame)
+MEASURED_COLUMNS = {"track": ("x_px", "y_px"), "radii": ("radius_px",)}
+
+
+def track_header(states: Iterable[str], measured: Iterable[str] = ()) -> list[str]:
     states = list(states)
-    return ["time_s", "frame"] + states + [f"{s}_fit" for s in states] + [f"{s}_residual" for s in states]
+    return (["time_s", "frame"] + states + [f"{s}_fit" for s in states] + [f"{s}_residual" for s in states]
+            + [c for key in measured for c in MEASURED_COLUMNS[key]])
+
+
+def _measured(report: Mapping[str, Any], n: int) -> tuple[list[str], list[list[Any]]]:
+    """The measurement record's per-frame series that have n values: their keys and, per frame, the cells."""
+    m = report.get("measurement") or {}
+    keys = [k for k in MEASURED_COLUMNS if isinstance(m.get(k), list) and len(m[k]) == n]
+    rows = []
+    for i in range(n):
+        cells: list[Any] = []
+        for k in keys:
+            v = m[k][i]  # a point [x, y], a number, or None where nothing was seen
+            cells += [None] * len(MEASURED_COLUMNS[k]) if v is None else list(v) if isinstance(v, list) else [v]
+        rows.append(cells)
+    return keys, rows
 
 
 def track_csv(report: Mapping[str, Any]) -> str | None:
@@ -64,11 +85,12 @@ def track_csv(report: Mapping[str, Any]) -> str | None:
     inp = report.get("input") or {}
     fps, stride = inp.get("fps"), int(inp.get("stride") or 1)
     first = int(round(float(inp.get("first_frame_time_s") or 0.0) * fps)) if fps else 0
+    keys, measured = _measured(report, len(traj["time"]))
     table = []
     for i, (t, z, r) in enumerate(zip(traj["time"], traj["latent"], traj["rollout"])):
         resid = [_minus(a, b) for a, b in zip(z, r)]
-        table.append([t, first + i * stride, *z, *r, *resid])
-    return csv_text(track_header(states), table)
+        table.append([t, first + i * stride, *z, *r, *resid, *(measured[i] if keys else [])])
+    return csv_text(track_header(states, keys), table)
 
 
 def write_run_tables(report: Mapping[str, Any], folder: Path) -> list[str]:

@@ -121,3 +121,14 @@ def test_a_calibrated_run_writes_track_png_and_labels_its_plots_in_physical_unit
     assert c_label and "calibrated" in c_label[0]
     g_label = [label for label in labels["params.png"] if label.startswith("gamma")]
     assert g_label and "latent" not in g_label[0]  # a rate is the same in every unit
+
+
+def test_track_csv_carries_the_measured_point_in_source_pixels():
+    from fitode.tables import track_csv
+    report = {"input": {"fps": 10.0, "stride": 1, "first_frame_time_s": 0.0},
+              "trajectory": {"states": ["x"], "time": [0.0, 0.1, 0.2], "latent": [[0.0], [1.0], [2.0]],
+                             "rollout": [[0.0], [1.0], [2.5]]},
+              "measurement": {"kind": "position", "track": [[10.5, 20.0], None, [12.25, 22.0]], "radii": [3.0, 4.0]}}
+    lines = track_csv(report).strip().split("\n")
+    assert lines[0].endswith("x_residual,x_px,y_px")  # radii of another length are not a column
+    assert lines[1].endswith(",10.5,20.0") and lines[2].endswith(",,") and lines[3].endswith(",12.25,22.0")
