@@ -85,13 +85,15 @@ class Reading:
 
     measured, fitted: (T,) with NaN where nothing was seen or the trajectory left the finite range;
     points: (T, 2) the fitted trajectory as image points (source pixels) where the reading is a place
-    (along a line, an angle about a pivot), else None; label: the axis label."""
+    (along a line, an angle about a pivot), else None; label: the axis label; latent_map: (a, b) with
+    reading = a * latent + b where the reading is affine in the latent (NaN where it is not)."""
 
     state: str
     label: str
     measured: "np.ndarray"
     fitted: "np.ndarray"
     points: "np.ndarray | None" = None
+    latent_map: tuple[float, float] = (float("nan"), float("nan"))
 
 
 def readings(measurement: Mapping[str, Any] | None, latent, rollout, states) -> list[Reading]:
@@ -116,10 +118,15 @@ def readings(measurement: Mapping[str, Any] | None, latent, rollout, states) -> 
             continue
         measured, label, to_reading, to_points = got
         a, b = _affine(z[:, j], to_reading(measured, inverse=True))
+        if how == "line" and a < 0:  # along the line the way the state grows: a fall reads as a distance fallen
+            m = {**measurement, "line": {**measurement["line"], "direction": [-v for v in measurement["line"]["direction"]]}}
+            measured, label, to_reading, to_points = _measured(m, how, track, len(z))
+            a, b = -a, -b
         with np.errstate(all="ignore"):
             fitted = to_reading(a * r[:, j] + b, inverse=False)
         fitted[~np.isfinite(fitted)] = np.nan
-        out.append(Reading(state, label, measured, fitted, to_points(fitted) if to_points else None))
+        affine = (a, b) if how in ("line", "radius", "angle") else (float("nan"), float("nan"))
+        out.append(Reading(state, label, measured, fitted, to_points(fitted) if to_points else None, affine))
     return out
 
 

@@ -207,9 +207,11 @@ def plot_track(path: Path, result, clip, video, t0: float) -> Path:
             img = np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img
             stills[i] = (np.clip(img, 0, 1), (box[0] - 0.5, box[0] + box[2] - 0.5, box[1] + box[3] - 0.5, box[1] - 0.5))
     m = result.meta.get("measurement")
+    maps = ((result.calibration or {}).get("maps") or {})
     return plots.plot_track(path, m, stills, np.asarray(result.time) + t0,
                             readings=readings(m, result.latent, result.rollout, result.states),
-                            stretch=stretch, train_frames=result.train_frames)
+                            stretch=stretch, train_frames=result.train_frames,
+                            calibrated={s: (v["a"], v["b"]) for s, v in maps.items()})
 
 
 def _read(video, **kw):

@@ -325,34 +325,49 @@ NO_PLACE = {
 
 def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: Mapping[int, tuple[np.ndarray, Sequence[float]]],
                time: Sequence[float], *, readings: Sequence[Any] = (), stretch: Mapping[str, Any] | None = None,
-               train_frames: int | None = None) -> Path:
+               train_frames: int | None = None, calibrated: Mapping[str, tuple[float, float]] | None = None) -> Path:
     """Sample frames with what was measured drawn on them, and each measured reading over time.
 
     measurement: the record of result.json's "measurement" (source pixels); stills: {frame of the
     clip: (RGB image, imshow extent [left, right, bottom, top] in source pixels)}; time: (T,) the
     time of every frame of the clip; readings: fitode.measurement.readings (measured and fitted
-    reading per state); stretch: the stretch record (frames of the clip, end exclusive), shaded.
+    reading per state); stretch: the stretch record (frames of the clip, end exclusive), shaded;
+    calibrated: {state: (A, B)}, the calibration's state = A * latent + B, for a second axis in the
+    calibrated units where a reading is affine in the latent.
     """
     plt = _plt()
     m = dict(measurement or {})
     t = np.asarray(time, dtype=float)
     idx = sorted(stills)
     track = _xy(m.get("track"), len(t))
+    mended = [i for i in m.get("mended") or [] if 0 <= i < len(t)]
+    strays = track[mended].copy()
+    track[mended] = np.nan  # drawn apart: their centroid was something else, and the path was read from neighbours
     fitted = next((r.points for r in readings if r.points is not None), None)
     n_rows = 1 + len(readings)
-    per = 3.6 if len(idx) <= 3 else 3.0
-    fig = plt.figure(figsize=(max(per * max(len(idx), 1), 8.5), 3.9 + 2.3 * len(readings) + 0.5))
-    grid = fig.add_gridspec(n_rows, max(len(idx), 1), height_ratios=[1.7] + [1.0] * len(readings))
     view = _view(m, track, fitted, stills)
+    box = view or (lambda e: (e[0], e[3], e[1], e[2]))(next(iter(stills.values()))[1] if stills else (0, 1, 1, 0))
+    aspect = (box[3] - box[1]) / max(box[2] - box[0], 1e-9)
+    cols = max(len(idx), 1)
+    per = 3.6 if cols <= 3 else 3.0  # inches per frame: a tall, narrow view (a fall) gets narrow columns
+    per = min(max(6.0 / aspect, 1.2), per)
+    width = max(per * cols, 8.5)
+    tall = min(max((width / cols - 0.7) * aspect, 1.5), 6.0)  # what the frame's shape leaves of its column
+    fig = plt.figure(figsize=(width, tall + 2.3 + 2.3 * len(readings)))
+    # a row of its own for the legend of the frames: above them it would cover the title
+    grid = fig.add_gridspec(n_rows + 1, max(len(idx), 1), height_ratios=[0.45, tall + 0.6] + [2.0] * len(readings))
     inside = _in_stretch(stretch, len(t))
     for k, i in enumerate(idx):
-        ax = fig.add_subplot(grid[0, k])
+        ax = fig.add_subplot(grid[1, k])
         img, extent = stills[i]
         ax.imshow(img, extent=tuple(extent), interpolation="nearest" if img.shape[1] < 200 else "antialiased")
         _draw_measurement(ax, m, track, fitted, i, inside)
-        if view is not None:
-            ax.set_xlim(view[0], view[2])
-            ax.set_ylim(view[3], view[1])
+        if len(mended):
+            ax.plot(strays[:, 0], strays[:, 1], "x", color="0.6", ms=5,
+                    label=f"{len(mended)} frame{'s' if len(mended) != 1 else ''} off the path, read from their neighbours")
+        shown = view or _whole(extent, m)
+        ax.set_xlim(shown[0], shown[2])
+        ax.set_ylim(shown[3], shown[1])
         where = "" if stretch is None else ("  (in the stretch)" if inside[i] else "  (outside the stretch)")
         ax.set_title(f"t = {t[i]:.2f} s, frame {i}{where}", fontsize=8)
         ax.tick_params(labelsize=6)
@@ -361,23 +376,36 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
         ax.set_xlabel("x (source pixels)", fontsize=7)
     if idx:
         handles, labels = fig.axes[0].get_legend_handles_labels()
+        key = fig.add_subplot(grid[0, :])
+        key.axis("off")
         if handles:
-            fig.axes[0].legend(handles, labels, loc="lower left", bbox_to_anchor=(0.0, 1.12), ncol=3, fontsize=7,
-                               frameon=False)
-    for row, reading in enumerate(readings, start=1):
+            key.legend(handles, labels, loc="center", ncol=4, fontsize=7, frameon=False)
+    for row, reading in enumerate(readings, start=2):
         ax = fig.add_subplot(grid[row, :])
-        ax.plot(t, reading.measured, ".", ms=3, color="tab:blue", label="measured")
+        kept = reading.measured.copy()
+        kept[mended] = np.nan
+        ax.plot(t, kept, ".", ms=3, color="tab:blue", label="measured")
+        if len(mended):
+            ax.plot(t[mended], reading.measured[mended], "x", color="0.6", ms=5, label="off the path (not fitted)")
         ok = np.isfinite(reading.fitted)
         ax.plot(t[ok], reading.fitted[ok], "-", lw=1.3, color="tab:orange", label="the equation's fitted trajectory")
         _shade_stretch(ax, t, stretch, train_frames)
         for i in idx:
             ax.axvline(t[i], color="0.5", lw=0.6, ls=":")
-        lo, hi = _limits(reading.measured, reading.fitted[ok])
+        lo, hi = _limits(kept, reading.fitted[ok])
         ax.set_ylim(lo, hi)
         ax.set_ylabel(f"{reading.state}: {reading.label}", fontsize=8)
+        a, b = reading.latent_map
+        if calibrated and reading.state in calibrated and math.isfinite(a) and a != 0:
+            big_a, big_b = calibrated[reading.state]
+            k = big_a / a  # state = A * (reading - b) / a + B: affine in the reading
+            if k != 0:
+                ax.secondary_yaxis("right", functions=(lambda v, k=k, c=big_b - k * b: k * v + c,
+                                                       lambda v, k=k, c=big_b - k * b: (v - c) / k)) \
+                    .set_ylabel(f"{reading.state} calibrated (units of --calibrate)", fontsize=8)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="best", framealpha=0.85)
-        if row == n_rows - 1:
+        if row == n_rows:
             ax.set_xlabel("time (s)")
     kind = m.get("kind", "none")
     text = NO_PLACE.get(kind) if not readings else None
@@ -423,6 +451,14 @@ def _shade_stretch(ax, t: np.ndarray, stretch: Mapping[str, Any] | None, train_f
         ax.axvspan(t[train_frames], t[-1], color="0.85", zorder=0, label="not trained on")
 
 
+def _whole(extent: Sequence[float], m: Mapping[str, Any]) -> tuple[float, float, float, float]:
+    """The whole frame (left, top, right, bottom), reaching up to a pivot above it."""
+    left, right, bottom, top = extent
+    if m.get("pivot") is not None:
+        top = min(top, m["pivot"][1] - 10)
+    return left, top, right, bottom
+
+
 def _view(m: Mapping[str, Any], track: np.ndarray, fitted, stills) -> tuple[float, float, float, float] | None:
     """The part of the frame to show: what was drawn, with a margin, in a shape no narrower than
     1:2 (a fall is a tall, thin path); None: the whole frame."""
@@ -447,7 +483,8 @@ def _view(m: Mapping[str, Any], track: np.ndarray, fitted, stills) -> tuple[floa
     w_img, h_img = right - left, bottom - top
     x0, x1, y0, y1 = min(xs), max(xs), min(ys), max(ys)
     w, h = max(x1 - x0, 1.0), max(y1 - y0, 1.0)
-    w, h = max(w, 0.5 * h, 0.05 * w_img), max(h, 0.5 * w, 0.05 * h_img)
+    # at least a quarter of the frame: the measurement is judged against what is around it
+    w, h = max(w, 0.5 * h, 0.25 * w_img), max(h, 0.5 * w, 0.25 * h_img)
     cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
     w, h = 1.4 * w, 1.4 * h
     if w >= 0.8 * w_img and h >= 0.8 * h_img:
@@ -473,9 +510,10 @@ def _draw_measurement(ax, m: Mapping[str, Any], track: np.ndarray, fitted, i: in
         ends = p0 + span[:, None] * d
         ax.plot(ends[:, 0], ends[:, 1], "--", color="cyan", lw=0.9, label="the line of motion")
     if np.isfinite(track).any():
-        ax.plot(track[:, 0], track[:, 1], "-", color="white", lw=0.7, alpha=0.5)
+        ax.plot(track[:, 0], track[:, 1], "-", color="white", lw=0.5, alpha=0.4)
         shown = np.where(inside[:, None], track, np.nan)
-        ax.plot(shown[:, 0], shown[:, 1], "-", color="lime", lw=1.0, alpha=0.9, label="the tracked path")
+        ax.plot(shown[:, 0], shown[:, 1], ".-", color="lime", lw=0.5, ms=2.5, alpha=0.9,
+                label="the tracked path (a dot per frame)")
     if fitted is not None and np.isfinite(fitted).any():
         ax.plot(fitted[:, 0], fitted[:, 1], "--", color="tab:orange", lw=1.1, label="the equation's trajectory")
         if np.isfinite(fitted[i]).all():

@@ -1,7 +1,8 @@
 """What an observation model measured, as a record to draw on the frames (Prepared.drawing).
 
 The record is plain data (lists, numbers, strings) so that it goes into result.json as it is. Its
-keys (all optional but "kind"): "track" [[x, y] or None per frame], "line" {"point", "direction"},
+keys (all optional but "kind"): "track" [[x, y] or None per frame], "mended" [frames whose point left
+the path of their neighbours and was read from them], "line" {"point", "direction"},
 "region" [x0, y0, x1, y1], "radii" [r per frame], "pivot" [x, y], "radius" r, "states"
 {state: reading}. A model that measures on the frames it was given says so with
 "space": "frames": its coordinates are pixel centres of those frames (x right, y down), which

@@ -41,8 +41,8 @@ class PositionObservation(MeasuredObservation):
                               "trim the clip to the motion (--start/--end) or observe 'any'")
         n_fit = xy.shape[0] if fit_frames is None else int(fit_frames)
         # the line of motion: a linear encoder of two collinear coordinates can cancel its own signal
-        direction, path = line_of_motion(xy, n_fit)
-        path, mended = mend_one_way(path, n_fit)
+        direction, raw = line_of_motion(xy, n_fit)
+        path, mended = mend_one_way(raw, n_fit)
         z = path / path[:n_fit].std().clamp_min(1e-6)
         angle = float(torch.rad2deg(torch.atan2(direction[1], direction[0]))) % 180
         note = (f"position: the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
@@ -55,6 +55,7 @@ class PositionObservation(MeasuredObservation):
                 caution = (f"{mended} of {n_fit} frames had a centroid off the path of their neighbours and were read "
                            "from them: something else changes in the view as much as the object; give --roi around it")
         drawing = record(self.name, reading="line", track=points(xy),
+                         mended=[int(i) for i in torch.nonzero(path != raw).flatten()] if mended else None,
                          line={"point": [float(v) for v in xy[:n_fit].mean(dim=0)],
                                "direction": [float(v) for v in direction]})
         return self.column(z.to(frames.dtype), out.components, note, caution, drawing)
