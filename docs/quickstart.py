@@ -84,7 +84,9 @@ def draw(folder: Path) -> Path:
     b.set_xlabel("time (s)", fontsize=8)
     b.set_ylabel("theta (latent units)", fontsize=8)
     b.tick_params(labelsize=7)
-    b.legend(fontsize=7, loc="upper right", frameon=False)
+    lo, hi = float(min(z.min(), r.min())), float(max(z.max(), r.max()))
+    b.set_ylim(lo - 0.05 * (hi - lo), hi + 0.45 * (hi - lo))  # room for the legend above the swing
+    b.legend(fontsize=7, loc="upper center", ncol=2, frameon=False)
     est = report["parameters"]
     b.set_title("   ".join(f"{k} = {v['value']:.4g} {v['unit'] or ''} (truth {TRUTH[k]:g}), {v['verdict']}"
                            for k, v in est.items()), fontsize=8)
