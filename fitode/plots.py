@@ -61,7 +61,7 @@ def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rol
         if window and window < len(t):
             ax.axvline(t[window - 1], color="tab:green", lw=0.8, ls=":",
                        label=f"end of the first {window}-frame window: the rollout after it is a prediction")
-        ax.set_ylabel(ylabels[i] if ylabels else latent_label(states[i]))
+        ax.set_ylabel(ylabels[i] if ylabels else latent_label(states[i]), fontsize=9)
         if states[i] in angles:
             ax.secondary_yaxis("right", functions=(np.degrees, np.radians)).set_ylabel("degrees")
         ax.grid(alpha=0.3)
@@ -81,6 +81,10 @@ def latent_label(state: str) -> str:
     return f"{state}\nlatent units (not calibrated)"
 
 
+READING_WORDS = {"line": "the position along the line", "radius": "the apparent radius",
+                 "1/radius": "1 / the apparent radius"}
+
+
 def state_labels(result) -> list[str]:
     """The axis label of each state of a FitResult's latent (uncalibrated): its own units where the
     observation measured it in them (radians for an angle), else latent units, saying what the
@@ -93,7 +97,8 @@ def state_labels(result) -> list[str]:
         if result.meta.get("physical_units"):
             out.append(f"{s} (radians)" if how == "angle" else f"{s}\nmeasured, in its own units")
         elif result.meta.get("measured") and how:
-            out.append(f"{latent_label(s)}:\naffine in the {how} measured")
+            what = READING_WORDS.get(how, f"the {how}")
+            out.append(f"{s}: latent units\n(not calibrated), affine in\n{what}")
         else:
             out.append(latent_label(s))
     return out

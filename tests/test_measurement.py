@@ -132,3 +132,24 @@ def test_track_csv_carries_the_measured_point_in_source_pixels():
     lines = track_csv(report).strip().split("\n")
     assert lines[0].endswith("x_residual,x_px,y_px")  # radii of another length are not a column
     assert lines[1].endswith(",10.5,20.0") and lines[2].endswith(",,") and lines[3].endswith(",12.25,22.0")
+
+
+def test_an_angle_record_is_read_in_degrees_and_drawn_about_its_pivot(tmp_path):
+    """The angle observation's record (pivot, radius, a track on the circle) as the tracking model writes it."""
+    from types import SimpleNamespace
+
+    from fitode import plots
+    theta = 0.3 * np.cos(np.linspace(0, 12, 80))  # radians, 0 straight down
+    pivot, radius = np.array([120.0, -40.0]), 150.0
+    track = pivot + radius * np.stack([np.sin(theta), np.cos(theta)], axis=1)
+    m = {"kind": "angle", "space": "source", "states": {"theta": "angle"}, "pivot": list(pivot), "radius": radius,
+         "track": track.tolist(), "source_size": [240, 160], "crop": [0, 0, 240, 160]}
+    (reading,) = readings(m, theta[:, None], theta[:, None], ["theta"])
+    assert np.allclose(reading.measured, np.degrees(theta)) and np.allclose(reading.fitted, np.degrees(theta))
+    assert np.abs(reading.points - track).max() < 1e-6
+    img = np.zeros((160, 240, 3))
+    path = plots.plot_track(tmp_path / "track.png", m, {0: (img, (-0.5, 239.5, 159.5, -0.5))}, np.arange(80) * 0.05,
+                            readings=[reading])
+    assert path.stat().st_size > 1000
+    result = SimpleNamespace(states=["theta"], meta={"measurement": m, "physical_units": True, "measured": True})
+    assert plots.state_labels(result) == ["theta (radians)"] and plots.angle_states(result) == ["theta"]
