@@ -1,8 +1,9 @@
 """`fitode VIDEO (--eq TEXT | --eq-file PATH | --system NAME) [options]`: fit one video.
 
 Prints what it understood, trains, prints a table of the estimates, and writes an output folder
-(result.json, fit.json, latent.png, params.png, loss.png, frames.png). --json prints result.json
-on stdout and moves every human line to stderr, so stdout is pure JSON.
+(result.json, fit.json, estimates.csv, track.csv, latent.png, params.png, loss.png, frames.png,
+track.png). --json prints result.json on stdout and moves every human line to stderr, so stdout
+is pure JSON.
 """
 from __future__ import annotations
 
