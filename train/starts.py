@@ -36,6 +36,7 @@ from .observe import ObservationModel
 COMPONENTS = 3  # principal components tried as the latent
 CANDIDATES = 16  # starts trained on each
 STEPS = 300
+SEARCH_WINDOWS = 48  # windows a search step draws: a basin shows on a sample as on all, at a fraction of the cost
 DISTINCT = 0.05  # two ends closer than this (relative, every constant) are one start
 
 
@@ -113,7 +114,7 @@ def _search(latents: list[np.ndarray], starts: list[DataStart], n: int, dt: floa
                         dtype=torch.float32).reshape(-1, len(latents), 1, 1)
     k = len(candidates)
     cfg = replace(config, restarts=k * len(latents), max_steps=STEPS, min_steps=min(config.min_steps, STEPS // 3),
-                  horizon_warmup=min(config.horizon_warmup, STEPS // 3), batch_windows=None)
+                  horizon_warmup=min(config.horizon_warmup, STEPS // 3), batch_windows=SEARCH_WINDOWS)
     try:
         trained = train_restarts(z, dt, system, params, cfg, list(candidates) * len(latents),
                                  seeds=list(range(k)) * len(latents),
