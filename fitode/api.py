@@ -96,9 +96,11 @@ def plan(req: FitRequest, frames: torch.Tensor, dt: float) -> FitPlan:
 
 
 def execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_offset: float = 0.0,
-            callback: Callback | None = None, progress: bool = False) -> FitResult:
+            callback: Callback | None = None, progress: bool = False, rate_std: float = 0.0) -> FitResult:
     """Train the plan, calibrate when asked (not after an interruption: unfinished training gives
-    no latent worth a scale), and assess: the FitResult with its verdicts and warnings."""
+    no latent worth a scale), make every constant's interval and assess: the FitResult with its
+    intervals, verdicts and warnings. rate_std: the relative uncertainty of the frame rate (0 for
+    a dt or --fps the user gave; fitode.train.interval.RATE_CONTAINER_STD for a container's)."""
     from fitode.eqparse import analyse
     from fitode.train.assess import assess
 
@@ -112,9 +114,25 @@ def execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_of
         calibrated, extra = _calibrate(result, req, analysis, time_offset)
     elif req.calibration:
         result.meta["calibration_skipped"] = "interrupted"
+    _intervals(result, req, rate_std)
     assess(result, analysis, calibrated=calibrated, extra=extra).apply(result)
     result.warnings[:0] = list(req.system.hints)  # the parser's advice stays with the numbers it concerns
     return result
+
+
+def _intervals(result: FitResult, req: FitRequest, rate_std: float) -> None:
+    """Each constant's 95% interval (fitode.train.interval) into its Estimate, and how it was
+    made into result.checks["interval"] (None where none could be made)."""
+    from fitode.train.interval import result_intervals
+
+    constants = (result.calibration or {}).get("constants", {})
+    relative = {n: float(c.get("relative_std", 0.0)) for n, c in constants.items() if c.get("converted")}
+    intervals, boot = result_intervals(result, req.system, req.params, rate_std=rate_std, calibration=relative,
+                                       seed=req.config.seed)
+    for name, iv in intervals.items():
+        result.parameters[name].interval = [iv.low, iv.high]
+    result.checks["interval"] = None if boot is None else {
+        **boot.to_dict(), "rate_std": rate_std, "shares": {n: iv.shares for n, iv in intervals.items()}}
 
 
 def _calibrate(result: FitResult, req: FitRequest, analysis, time_offset: float):

@@ -41,6 +41,7 @@ class CalibrationPoint:
     state: str
     time: float
     value: float
+    std: float = 0.0  # the value's uncertainty as given (h(0)=0.07±0.002), one standard deviation
 
 
 @dataclass
@@ -56,8 +57,12 @@ class AffineMap:
 _ITEM = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(\'*)\s*\(\s*([^()]*?)\s*\)\s*=\s*(.+?)\s*$")
 
 
+_PLUS_MINUS = re.compile(r"\s*(?:±|\+-|\+/-)\s*")
+
+
 def parse_calibration(text: str, states: Sequence[str]) -> list[CalibrationPoint]:
-    """'h(0)=0.07; h(25)=0.01' -> points. Strict: known states, numbers, two points per state."""
+    """'h(0)=0.07; h(25)=0.01' -> points; a value may carry its uncertainty, one standard
+    deviation: 'h(0)=0.07±0.002' (or +- or +/-). Strict: known states, numbers, two points per state."""
     if text is None or not str(text).strip():
         raise CalibrationError("--calibrate is empty; give known values like \"h(0)=0.07; h(25)=0.01\"")
     points: list[CalibrationPoint] = []
@@ -76,8 +81,12 @@ def parse_calibration(text: str, states: Sequence[str]) -> list[CalibrationPoint
             raise CalibrationError(f"--calibrate: {name} is not a state of the equation "
                                    f"(states: {', '.join(states)})")
         t = _number(t_text, f"the time in {raw.strip()!r}")
+        v_text, _, s_text = _PLUS_MINUS.sub("\0", v_text).partition("\0")
         v = _number(v_text, f"the value in {raw.strip()!r}")
-        points.append(CalibrationPoint(name, t, v))
+        sd = _number(s_text, f"the uncertainty in {raw.strip()!r}") if s_text.strip() else 0.0
+        if sd < 0:
+            raise CalibrationError(f"--calibrate: the uncertainty in {raw.strip()!r} is negative")
+        points.append(CalibrationPoint(name, t, v, sd))
     if not points:
         raise CalibrationError("--calibrate has no STATE(TIME)=VALUE item")
     for state in sorted({p.state for p in points}):
@@ -133,6 +142,24 @@ def fit_affine(points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.
         rms = float(np.sqrt(np.mean((A @ np.array([a, b]) - v) ** 2)))
         maps[state] = AffineMap(float(a), float(b), len(mine), rms)
     return maps
+
+
+def scale_uncertainty(points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.ndarray,
+                      states: Sequence[str], maps: Mapping[str, AffineMap]) -> dict[str, float]:
+    """The relative standard deviation of each map's scale a from the points' uncertainties:
+    the least-squares a is linear in the values, so its variance is the values' variances
+    carried through the fit's weights (0 where no point carries an uncertainty)."""
+    time = np.asarray(time, dtype=float)
+    out: dict[str, float] = {}
+    for state, m in maps.items():
+        col = list(states).index(state)
+        mine = [p for p in points if p.state == state]
+        z = np.array([local_value(time, np.asarray(latent, dtype=float)[:, col], p.time) for p in mine])
+        A = np.stack([z, np.ones_like(z)], axis=1)
+        weights = np.linalg.pinv(A)[0]  # a = weights @ values
+        sd = float(np.sqrt(np.sum((weights * np.array([p.std for p in mine])) ** 2)))
+        out[state] = sd / abs(m.a) if m.a else math.inf
+    return out
 
 
 LOCAL_HALF_WIDTH = 3
@@ -233,7 +260,7 @@ class Calibration:
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "points": [{"state": p.state, "time": p.time, "value": p.value} for p in self.points],
+            "points": [{"state": p.state, "time": p.time, "value": p.value, "std": p.std} for p in self.points],
             "maps": {s: {"a": m.a, "b": m.b, "n_points": m.n_points, "rms": m.rms} for s, m in self.maps.items()},
             "constants": self.constants,
             "refit_loss": self.loss,
@@ -287,6 +314,9 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     options = {"integrator": str(settings.get("integrator", "rk4")), "substeps": int(settings.get("substeps", 1)),
                "windows": int(settings.get("window", 20))}
     factors = map_factors(system, maps, x, result.states)
+    rel_a = scale_uncertainty(points, time, latent, result.states, maps)
+    from fitode.eqparse.identify import scale_exponents
+    powers = scale_exponents(system)
     scales = {n: _scale(analysis, n) for n in system.learnable}
     mapped_best = {n: best[n] * f for n, f in factors.items() if f is not None}
     fitted = _refit(system, params, x[: result.train_frames], result.dt, best, mapped_best, maps, options, seed)
@@ -314,7 +344,8 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
                            "refit_std": fitted.errors[name] if fitted is not None else math.nan,
                            "best_run_before": ref, "converted": converted, "unfitted": unfitted,
                            "scale": scales[name],
-                           "change": _rel(after, est.value)}
+                           "change": _rel(after, est.value),
+                           "relative_std": _relative_std(name, ratio if converted else 1.0, maps, rel_a, powers)}
     best_after = {n: mapped_best.get(n, fitted.values[n] if fitted is not None else best[n]) for n in system.learnable}
     rollout = _rollout(system, params, x, result.dt, best_after, settings)
     loss = fitted.misfit ** 2 if fitted is not None else math.nan
@@ -373,6 +404,23 @@ def _refit(system, params, x: np.ndarray, dt: float, best: Mapping[str, float], 
         starts = [starts[i] for v, i in scored[:2] if math.isfinite(v)]
     fits = [f for f in (fit_trajectory(system, params, x, dt, v, **options) for v in starts) if f is not None]
     return min(fits, key=lambda f: f.misfit) if fits else None
+
+
+def _relative_std(name: str, ratio: float, maps: Mapping[str, AffineMap], rel_a: Mapping[str, float],
+                  powers: Mapping[str, Mapping[str, float] | None]) -> float:
+    """The relative standard deviation a calibrated constant takes from the points'
+    uncertainties: the constant goes as prod a_s**p_s, so its relative std is the quadrature sum
+    of p_s times each scale's; where no pure power exists (a constant fitted after the map),
+    the power its conversion showed, log|ratio| / log|a|, over one map (0 where it cannot tell)."""
+    exps = powers.get(name)
+    if exps is None:
+        if len(maps) != 1 or not math.isfinite(ratio) or ratio == 0:
+            return 0.0
+        (state, m), = maps.items()
+        if abs(math.log(abs(m.a))) < 1e-6:
+            return 0.0
+        exps = {state: math.log(abs(ratio)) / math.log(abs(m.a))}
+    return float(math.sqrt(sum((exps.get(s, 0.0) * rel_a.get(s, 0.0)) ** 2 for s in maps)))
 
 
 def _rel(after: float, before: float) -> float:

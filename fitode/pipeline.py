@@ -110,7 +110,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     _try_plot(plots.plot_frames, folder / "frames.png", clip.frames, clip.dt, t0=t0, plots_done=plots_done)
 
     try:
-        result = api.execute(req, plan, frames, time_offset=t0, callback=recorder, progress=progress)
+        result = api.execute(req, plan, frames, time_offset=t0, callback=recorder, progress=progress,
+                             rate_std=rate_std(read.fps))
     except KeyboardInterrupt:
         _write_partial(report, recorder, folder, "incomplete", "interrupted (Ctrl-C) during training", plots_done)
         say(f"interrupted: partial results in {folder}")
@@ -146,6 +147,12 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     if interrupted:
         raise RunInterrupted(outcome)
     return outcome
+
+
+def rate_std(fps: float | None) -> float:
+    """The frame rate's relative uncertainty for the interval: none where the user gave it."""
+    from fitode.train.interval import RATE_CONTAINER_STD, RATE_GIVEN_STD
+    return RATE_GIVEN_STD if fps else RATE_CONTAINER_STD
 
 
 # ---------------------------------------------------------------------------------------------

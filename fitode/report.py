@@ -196,7 +196,7 @@ def complete_report(report: dict[str, Any], result, analysis, t0: float = 0.0) -
     for name, est in result.parameters.items():
         params[name] = {"value": est.value, "std": est.std, "n_runs": est.n_runs, "unit": est.unit or units.get(name),
                         "scale": scale_of(analysis, name), "measurable": measurable(analysis, name),
-                        "calibrated": est.calibrated, "latent_value": est.latent_value,
+                        "calibrated": est.calibrated, "latent_value": est.latent_value, "interval": est.interval,
                         "latent_units": scale_dependent(analysis, name) and not est.calibrated
                         and not result.meta.get("physical_units", False),
                         "best_run_only": name in result.meta.get("own_units", ()), **_verdict(result, name)}
@@ -279,14 +279,14 @@ def format_table(report: Mapping[str, Any]) -> str:
     if params:
         n_runs = len(report.get("runs", []))
         n_sel = len(report.get("selected", []))
-        rows = [("constant", "value", "spread", "unit", "verdict")]
+        rows = [("constant", "value", "95%", "unit", "verdict")]
         for name, p in params.items():
             # a value in the latent's arbitrary units has none of the equation file's physical unit
             unit = "latent units" if p.get("latent_units") else p.get("unit") or ""
-            spread = f"±{_spread(p['std'])}" if p.get("n_runs", 1) > 1 else "-"
-            rows.append((name, _num(p["value"]), spread, unit, p.get("verdict", "")))
+            rows.append((name, _num(p["value"]), _interval(p), unit, p.get("verdict", "")))
         widths = [max(len(r[i]) for r in rows) for i in range(4)]
-        out.append(f"estimates (mean over {n_sel} of {n_runs} restarts; spread = their standard deviation)")
+        out.append(f"estimates (mean over {n_sel} of {n_runs} restarts; 95% = the half width of the interval "
+                   "that holds the truth 95 times in 100: residuals, frame timing, calibration, restarts)")
         only = [n for n, p in params.items() if p.get("best_run_only")]
         if only and n_sel > 1:
             out.append(f"  ({', '.join(only)}: the best restart's alone; each restart reads the same measured path "
@@ -316,6 +316,14 @@ def _num(v: float | None) -> str:
         decimals = max(0, 4 - int(math.floor(math.log10(mag))))
         return f"{v:.{min(decimals, 7)}f}"
     return f"{v:.4e}"
+
+
+def _interval(p: Mapping[str, Any]) -> str:
+    """± the half width of the 95% interval (its larger side), two significant digits; "-" for none."""
+    iv, v = p.get("interval"), p.get("value")
+    if not iv or v is None or not all(isinstance(e, (int, float)) and math.isfinite(e) for e in iv):
+        return "-"
+    return f"±{_spread(max(v - iv[0], iv[1] - v))}"
 
 
 def _spread(v: float | None) -> str:

@@ -11,7 +11,11 @@ judged with the whole run in view, each rule with one threshold:
   fits its latent about as well (RIVAL_MISS) but ended elsewhere makes the estimate ambiguous;
 - settling: an estimate whose restarts all stopped at the step limit is ambiguous, and says how
   far it still moved over its last MOTION_STEPS steps;
-- an interrupted run is ambiguous: its estimates come from unfinished training.
+- an interrupted run is ambiguous: its estimates come from unfinished training;
+- the interval (fitode.train.interval, made before the assessment): where none could be made, or
+  where the equation fitted without the clip's last quarter misses it by more than HELD_OUT_MAX
+  times the residuals there, the equation does not explain the clip as well as the interval
+  assumes: a doubt the interval cannot carry, so the estimate is ambiguous.
 The worst finding decides: any "not trustworthy" beats "ambiguous", which beats "trusted". Every
 finding's reason is shown once: as a verdict's reason, or among the warnings. The warnings say
 nothing else that could make a number unreliable; notes (restarts left out, failed) say what
@@ -33,6 +37,7 @@ RIVAL_MISS = 10.0  # a restart that scores alike is a rival only if it fits the 
 # (its window error over the latent's variance within this factor: the loss would mix in the KL term,
 # which differs between right fits of a one-way motion)
 MOTION_STEPS = 200
+HELD_OUT_MAX = 3.0
 
 
 @dataclass
@@ -63,6 +68,8 @@ def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iter
     physical_units = bool(result.meta.get("physical_units"))
     measured = list(_measurement_findings(result)) + list(extra)
     interrupted = bool(result.meta.get("interrupted"))
+    if not interrupted:
+        measured += _interval_findings(result)
     if interrupted:
         measured.append(Finding("ambiguous", "training was interrupted (Ctrl-C): the estimates come from "
                                 "unfinished training"))
@@ -91,6 +98,24 @@ def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iter
 
 def _measurement_findings(result) -> Iterable[Finding]:
     return (Finding.from_dict(f) for f in result.checks.get("findings", []))
+
+
+def _interval_findings(result) -> list[Finding]:
+    """Does the equation explain the clip as well as the interval assumes? (see the module
+    docstring). Nothing where no interval was asked for (checks without "interval")."""
+    if "interval" not in result.checks:
+        return []
+    boot = result.checks["interval"]
+    if boot is None:
+        return [Finding("ambiguous", "no interval could be made: the path cannot be fitted as one trajectory of "
+                        "the equation over the clip")]
+    out = []
+    held = boot.get("held_out")
+    if held is not None and held > HELD_OUT_MAX:
+        out.append(Finding("ambiguous", f"the equation fitted without the clip's last quarter misses it by {held:.3g} "
+                           "times the residuals of the whole clip's fit there: one set of constants does not "
+                           "predict the clip"))
+    return out
 
 
 def _identifiability(name: str, analysis, calibrated: set[str], physical_units: bool, result) -> list[Finding]:

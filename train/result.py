@@ -16,7 +16,8 @@ from fitode.jsonio import to_jsonable, write_json
 @dataclass
 class Estimate:
     """A constant's estimate: value and std (over the restarts it comes from) in physical units
-    where calibrated, else the latent's; latent_value: the value before calibration."""
+    where calibrated, else the latent's; latent_value: the value before calibration; interval:
+    its 95% interval from what limits it (fitode.train.interval)."""
 
     value: float
     std: float
@@ -24,6 +25,7 @@ class Estimate:
     unit: str | None = None
     calibrated: bool = False
     latent_value: float | None = None
+    interval: list[float] | None = None  # [low, high], 95% (fitode.train.interval); None where none was made
 
 
 @dataclass

@@ -1,0 +1,423 @@
+"""A 95% interval for every constant, from what limits it.
+
+The estimate is a set of constants for which one trajectory of the equation follows a path x
+(T, k): a measured path, or a learned latent read as the equation's state. What limits it:
+
+- the residuals. The fitted trajectory leaves residuals that hang together from frame to frame
+  (motion blur, the codec, a tracker's wobble, what the equation leaves out), so a formula that
+  counts T independent frames is too narrow, by a factor that grows with the correlation. The
+  residuals are resampled in moving blocks along time (circular, centred), the blocks as long as
+  the residuals stay correlated (block_length: twice their integrated autocorrelation time), added
+  to the fitted trajectory and refitted (fitode.train.trajectory.fit_trajectory, from the estimate,
+  with few iterations: a refit only moves as far as the noise moves the optimum). The spread of the
+  refits is the residuals' share, and a Student t quantile for the few refits makes it a 95% one.
+- the frame timing. Every constant scales with a power of time (a frequency squared, g/L); the
+  refit of the same path with dt stretched by TIME_STEP gives that sensitivity for any equation,
+  and a relative uncertainty of the frame rate (rate_std: the container's nominal rate, or 0 for
+  a rate the user gave) adds its share.
+- the calibration points (fitode.calibrate: value +- std), added by the caller as a relative share.
+- the restarts of a free latent: the spread of the kept restarts, widened by RESTART_WIDEN (few
+  restarts say little of their own spread), the gap between the reported value and the one
+  trajectory's (the training's windows see less than the whole clip), and what the latent's
+  freedom to bend adds: each constant's change when the fitted trajectory is bent by BEND of its
+  spread (bends), and a floor of ENCODER_FLOOR of its value.
+
+The shares are independent and add in quadrature; the gap adds as a bias would. The interval does
+not care how the estimate was found: it takes the system, the path, dt and the values.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+
+LEVEL = 0.95
+ITERATIONS = 48  # refits, all in one batch
+REFIT_ITERATIONS = 3  # Gauss-Newton steps per refit, from the one trajectory: the noise moves it little
+CENTRE_ITERATIONS = 12  # Gauss-Newton steps from the estimate to the one trajectory
+TIME_STEP = 0.01  # dt stretched by 1% to read each constant's sensitivity to the frame rate
+RESTART_WIDEN = 2.0
+# a learned (free) latent can bend where the frames do not hold it, which no residual shows (the
+# bundled example's L 0.29% off with its restarts agreeing to 0.002%, the paper's motion video's g1
+# 1.7% off with the residuals' share 0.08%): each constant's change under bends of BEND of the
+# path's spread (bends()), and ENCODER_FLOOR of its value, are its share (both set on those two
+# clips; the coverage bench checks them)
+BEND = 0.01
+ENCODER_FLOOR = 0.002
+BLOCK_TIMES = 3  # blocks three autocorrelation times long: what is left is block_bias's
+MAX_RHO = 0.98
+HELD_OUT = 0.25  # the last quarter of the path, predicted from a fit of the rest
+MIN_KEPT = 0.6  # fewer refits than this fraction succeeded: no interval from the residuals
+RATE_CONTAINER_STD = 3e-4  # the container's nominal rate: 59.985 stated against 60.000 stamped (bob clip)
+RATE_GIVEN_STD = 0.0  # --fps: the user states the rate
+
+
+@dataclass
+class Interval:
+    """One constant's interval and the shares behind it (standard deviations, the constant's units)."""
+
+    low: float
+    high: float
+    value: float
+    shares: dict[str, float] = field(default_factory=dict)  # residuals, timing, calibration, restarts, gap
+
+    @property
+    def relative_width(self) -> float:
+        return (self.high - self.low) / max(abs(self.value), 1e-300)
+
+    def contains(self, v: float) -> bool:
+        return self.low <= v <= self.high
+
+    def to_dict(self) -> dict:
+        return {"interval": [self.low, self.high], "shares": dict(self.shares)}
+
+
+@dataclass
+class Bootstrap:
+    """The moving-block bootstrap of one path: each constant's residual and timing standard
+    deviations, and how they were found."""
+
+    values: dict[str, float]  # the one trajectory's constants (the bootstrap's centre)
+    std: dict[str, float]  # the refits' spread
+    timing: dict[str, float]  # d constant / d log(dt)
+    block: int
+    iterations: int
+    kept: int
+    quantile: float  # the t quantile the residual share is multiplied by
+    wall_s: float
+    misfit: float  # the one trajectory's RMS residual over each state's spread
+    residual_rms: list[float]  # per state, in the path's units
+    noise_rms: list[float]  # per state: the frame-to-frame noise, from second differences
+    held_out: float | None = None  # the held-out prediction's miss over the residuals there (_held_out)
+    bend: dict[str, float] = field(default_factory=dict)  # the constants' RMS change under BEND-sized bends
+
+    def to_dict(self) -> dict:
+        return {"method": "moving-block bootstrap of the one trajectory's residuals", "block": self.block,
+                "iterations": self.iterations, "kept": self.kept, "t_quantile": self.quantile,
+                "wall_s": self.wall_s, "trajectory": dict(self.values), "std": dict(self.std),
+                "dlog_dt": dict(self.timing), "misfit": self.misfit, "residual_rms": list(self.residual_rms),
+                "noise_rms": list(self.noise_rms), "held_out": self.held_out, "bend": dict(self.bend)}
+
+
+def correlation(residuals: np.ndarray) -> float:
+    """The lag-one autocorrelation of the residuals, the largest over the states (0 to MAX_RHO)."""
+    r = np.asarray(residuals, dtype=float).reshape(len(residuals), -1)
+    r = r - r.mean(axis=0)
+    rho = [float(r[1:, j] @ r[:-1, j] / (r[:, j] @ r[:, j])) for j in range(r.shape[1]) if r[:, j] @ r[:, j] > 0]
+    return min(max(max(rho, default=0.0), 0.0), MAX_RHO)
+
+
+def block_length(residuals: np.ndarray) -> int:
+    """BLOCK_TIMES the integrated autocorrelation time of the residuals (the larger of the sum
+    of their autocorrelation over its initial positive run, Geyer's cut, and an AR(1)'s
+    (1 + rho) / (1 - rho) from the lag-one correlation; the largest over the states), at least 1
+    and at most a quarter of the frames: a block must hold what hangs together, and there must
+    be blocks to draw."""
+    r = np.asarray(residuals, dtype=float).reshape(len(residuals), -1)
+    n = len(r)
+    rho = correlation(r)
+    tau = (1 + rho) / (1 - rho)
+    for j in range(r.shape[1]):
+        e = r[:, j] - r[:, j].mean()
+        var = float(e @ e)
+        if var <= 0:
+            continue
+        acf = np.correlate(e, e, mode="full")[n - 1:] / var
+        s = 1.0
+        for k in range(1, n // 2):
+            if acf[k] <= 0:
+                break
+            s += 2 * acf[k]
+        tau = max(tau, s)
+    return int(min(max(1, math.ceil(BLOCK_TIMES * tau)), max(1, n // 4)))
+
+
+def block_bias(rho: float, block: int) -> float:
+    """The factor by which blocks of `block` frames understate the spread of a sum of AR(1)
+    residuals with lag-one correlation rho: a block loses the correlation across its edges
+    (the bootstrap's variance is the Bartlett-weighted sum of the autocovariance up to the block,
+    the truth the whole sum, (1 + rho) / (1 - rho))."""
+    k = np.arange(1, max(block, 1))
+    seen = 1 + 2 * float(np.sum((1 - k / block) * rho ** k))
+    return math.sqrt(((1 + rho) / (1 - rho)) / seen)
+
+
+def leverage(n: int, p: int, rho: float) -> float:
+    """The factor by which residuals understate the noise: the fit takes p of the path's
+    n / tau independent stretches (tau = (1 + rho) / (1 - rho)) into its constants and start,
+    so the residuals keep only 1 - p tau / n of the noise's variance (a residual bootstrap's
+    usual correction, 1 / sqrt(1 - h), for frames that hang together)."""
+    tau = (1 + rho) / (1 - rho)
+    return math.sqrt(1.0 / max(1.0 - p * tau / n, 0.25))
+
+
+def resample_blocks(residuals: np.ndarray, block: int, rng: np.random.Generator) -> np.ndarray:
+    """Circular moving blocks of the residuals, (T, k), centred so that the resampled residuals
+    add no offset."""
+    r = np.asarray(residuals, dtype=float)
+    n = len(r)
+    starts = rng.integers(0, n, size=math.ceil(n / block))
+    idx = (starts[:, None] + np.arange(block)[None, :]).reshape(-1)[:n] % n
+    out = r[idx]
+    return out - out.mean(axis=0)
+
+
+def noise_level(x: np.ndarray) -> np.ndarray:
+    """Per state, the frame-to-frame noise of a path: the spread of its second differences over
+    sqrt(6) (white noise's ratio; a smooth motion adds little to a second difference)."""
+    x = np.asarray(x, dtype=float).reshape(len(x), -1)
+    if len(x) < 4:
+        return np.full(x.shape[1], math.nan)
+    d2 = np.diff(x, n=2, axis=0)
+    return 1.4826 * np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0) / math.sqrt(6)
+
+
+def t_quantile(level: float, dof: int) -> float:
+    """Student's t quantile (two-sided `level`), from the normal one by the Cornish-Fisher series."""
+    from statistics import NormalDist
+    z = NormalDist().inv_cdf(0.5 + level / 2)
+    if dof <= 0:
+        return math.inf
+    g1 = (z ** 3 + z) / 4
+    g2 = (5 * z ** 5 + 16 * z ** 3 + 3 * z) / 96
+    g3 = (3 * z ** 7 + 19 * z ** 5 + 17 * z ** 3 - 15 * z) / 384
+    return z + g1 / dof + g2 / dof ** 2 + g3 / dof ** 3
+
+
+class _Batch:
+    """Rollouts of one trajectory of the equation for many (constants, starting frames) at once:
+    the block's restart axis carries every draw and every finite-difference column, so that a
+    Gauss-Newton step for all draws is one rollout (a refit one by one with L-BFGS took 8 s for
+    300 frames here; 64 draws at once take about as long as one)."""
+
+    def __init__(self, system, params: Mapping, x: np.ndarray, dt: float, integrator: str, substeps: int):
+        import torch
+
+        from fitode.codegen import PhysicsBlock
+
+        self.system, self.params, self.dt = system, params, float(dt)
+        self.integrator, self.substeps = integrator, substeps
+        self.names = list(system.learnable)
+        probe = PhysicsBlock(system, params, integrator=integrator, substeps=substeps, dtype=torch.float64)
+        self.nc, self.T, self.k = probe.n_context, x.shape[0], x.shape[1]
+        self.m = len(self.names)
+        self.p = self.m + self.nc * self.k
+        self.weight = 1.0 / np.maximum(x.std(axis=0), 1e-24)  # every state counts equally, as fit_trajectory's
+
+    def roll(self, theta: np.ndarray, dt: float | None = None, frames: int | None = None) -> np.ndarray:
+        """(N, T, k) trajectories for theta (N, p) = constants then starting frames; NaN where a
+        rollout leaves the equation's domain."""
+        import torch
+
+        from fitode.codegen import PhysicsBlock
+
+        n = len(theta)
+        block = PhysicsBlock(self.system, self.params, integrator=self.integrator, substeps=self.substeps,
+                             dtype=torch.float64, restarts=n, check_finite=False)
+        block.set_constants({name: theta[:, i].tolist() for i, name in enumerate(self.names)}, clip=True)
+        head = torch.as_tensor(theta[:, self.m:].reshape(n, 1, self.nc, self.k))
+        with torch.no_grad():
+            out = block(head, frames or self.T, self.dt if dt is None else dt)[:, 0]
+        return out.numpy()
+
+    def steps(self, theta: np.ndarray) -> np.ndarray:
+        """Finite-difference steps (N, p): relative for the constants, a millionth of each
+        state's spread for the starting frames."""
+        h = np.empty_like(theta)
+        h[:, : self.m] = 1e-6 * np.maximum(np.abs(theta[:, : self.m]), 1e-6)
+        h[:, self.m:] = np.tile(1e-6 / self.weight, self.nc)[None, :]
+        return h
+
+    def cost(self, theta: np.ndarray, targets: np.ndarray) -> np.ndarray:
+        r = (self.roll(theta) - targets) * self.weight
+        c = np.mean(r.reshape(len(theta), -1) ** 2, axis=1)
+        return np.where(np.isfinite(c), c, np.inf)
+
+    def gauss_newton(self, theta: np.ndarray, targets: np.ndarray, iterations: int) -> np.ndarray:
+        """Levenberg-Marquardt steps of every theta (N, p) towards its target (N, T, k), a step
+        kept only where it lowers the misfit; a draw whose rollout fails is NaN."""
+        theta = theta.copy()
+        damping = np.full(len(theta), 1e-8)
+        eye = np.eye(self.p)[None]
+        for _ in range(iterations):
+            h = self.steps(theta)
+            batch = np.repeat(theta[:, None, :], self.p + 1, axis=1)
+            batch[:, 1:, :] += eye * h[:, None, :]
+            rolled = self.roll(batch.reshape(-1, self.p)).reshape(len(theta), self.p + 1, self.T, self.k)
+            r = ((rolled[:, 0] - targets) * self.weight).reshape(len(theta), -1)
+            jac = ((rolled[:, 1:] - rolled[:, :1]) * self.weight / h[:, :, None, None]).reshape(len(theta), self.p, -1)
+            normal = jac @ jac.transpose(0, 2, 1)
+            grad = (jac @ r[:, :, None])[:, :, 0]
+            now = np.mean(r ** 2, axis=1)
+            ok = np.all(np.isfinite(normal.reshape(len(theta), -1)), axis=1) & np.isfinite(now)
+            if not ok.any():
+                return np.full_like(theta, np.nan)
+            diag = np.maximum(np.einsum("nii->ni", normal), 1e-300)
+            trial = theta.copy()
+            for _ in range(4):  # raise the damping where a step does not lower the misfit
+                lhs = normal[ok] + (damping[ok, None] * diag[ok])[:, :, None] * eye
+                trial[ok] = theta[ok] - np.linalg.solve(lhs, grad[ok][:, :, None])[:, :, 0]
+                better = self.cost(trial, targets) < now
+                damping = np.where(better, damping / 10, damping * 100)
+                if better[ok].all():
+                    break
+            theta = np.where((better & ok)[:, None], trial, theta)
+            theta[~ok] = np.nan
+        return theta
+
+
+def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping[str, float], *,
+              iterations: int = ITERATIONS, seed: int = 0, integrator: str = "rk4", substeps: int = 1,
+              refit_iterations: int = REFIT_ITERATIONS, level: float = LEVEL, learned: bool = False) -> Bootstrap | None:
+    """The moving-block bootstrap of the path x (T, k) about one trajectory of the equation
+    fitted from `values` (see the module docstring). learned: x is a learned latent, whose
+    bends are measured too (bends). None where the path cannot be fitted as one trajectory or
+    too few refits succeed."""
+    began = time.perf_counter()
+    x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
+    if not np.all(np.isfinite(x)):
+        return None
+    try:
+        batch = _Batch(system, params, x, dt, integrator, substeps)
+        if batch.T < batch.nc + 2 * batch.p:
+            return None
+        theta0 = np.concatenate([[float(values[n]) for n in batch.names], x[: batch.nc].reshape(-1)])[None]
+        centre = batch.gauss_newton(theta0, x[None], CENTRE_ITERATIONS)
+        if not np.all(np.isfinite(centre)):
+            return None
+        fitted = batch.roll(centre)[0]
+        resid = x - fitted
+        block = block_length(resid)
+        rng = np.random.default_rng(seed)
+        targets = np.stack([fitted + resample_blocks(resid, block, rng) for _ in range(iterations)])
+        draws = batch.gauss_newton(np.repeat(centre, iterations, axis=0), targets, refit_iterations)
+        draws = draws[np.all(np.isfinite(draws), axis=1)]
+        if len(draws) < max(2, MIN_KEPT * iterations):
+            return None
+        stretched = batch.gauss_newton(centre, batch.roll(centre, dt * (1 + TIME_STEP)), refit_iterations)
+        held_out = _held_out(system, params, x, dt, centre, integrator, substeps)
+        bend = bends(batch, centre, fitted, refit_iterations) if learned else {}
+    except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError):
+        return None
+    names, m = batch.names, batch.m
+    rho = correlation(resid)
+    spread = np.std(draws[:, :m], axis=0, ddof=1) * block_bias(rho, block) * leverage(len(x), batch.p, rho)
+    # the same path read with a longer dt: the constants that make the stretched-time rollout
+    # match it, i.e. the constants' sensitivity to the frame rate (a pure power of time or not)
+    timing = {n: float((centre[0, i] - stretched[0, i]) / math.log1p(TIME_STEP)) for i, n in enumerate(names)}
+    return Bootstrap(values={n: float(centre[0, i]) for i, n in enumerate(names)},
+                     std={n: float(s) for n, s in zip(names, spread)}, timing=timing, block=block,
+                     iterations=iterations, kept=len(draws), quantile=t_quantile(level, len(draws) - 1),
+                     wall_s=time.perf_counter() - began,
+                     misfit=float(np.sqrt(np.mean((resid * batch.weight) ** 2))),
+                     residual_rms=[float(v) for v in np.sqrt(np.mean(resid ** 2, axis=0))],
+                     noise_rms=[float(v) for v in noise_level(x)], held_out=held_out, bend=bend)
+
+
+def bends(batch: _Batch, centre: np.ndarray, fitted: np.ndarray, iterations: int) -> dict[str, float]:
+    """Each constant's RMS change when the fitted trajectory is bent by BEND of its spread in the
+    ways a learned latent can bend unseen: its amplitude growing or shrinking along the clip, and
+    a quadratic and a cubic bend of its values (a readout slightly off a straight line)."""
+    mid = fitted.mean(axis=0)
+    half = np.maximum(np.abs(fitted - mid).max(axis=0), 1e-300)
+    u = (fitted - mid) / half
+    ramp = np.linspace(-1.0, 1.0, len(fitted))[:, None]
+    shapes = [u * ramp, u * np.abs(u), u ** 3]
+    targets = np.stack([fitted + BEND * half * s for s in shapes])
+    bent = batch.gauss_newton(np.repeat(centre, len(shapes), axis=0), targets, iterations)
+    change = bent[:, : batch.m] - centre[:, : batch.m]
+    if not np.all(np.isfinite(change)):
+        return {}
+    return {n: float(np.sqrt(np.mean(change[:, i] ** 2))) for i, n in enumerate(batch.names)}
+
+
+def _held_out(system, params: Mapping, x: np.ndarray, dt: float, centre: np.ndarray, integrator: str,
+              substeps: int) -> float | None:
+    """How much worse the equation predicts the last HELD_OUT of the path, fitted without it,
+    than the one trajectory fitted to all of it follows it there: the RMS of the prediction's
+    miss over the RMS of the one trajectory's residuals on the same frames (about 1 where the
+    equation explains the clip; None where the rest cannot be fitted)."""
+    n_fit = int(round(len(x) * (1 - HELD_OUT)))
+    part = _Batch(system, params, x[:n_fit], dt, integrator, substeps)
+    if n_fit < part.nc + 2 * part.p:
+        return None
+    theta = part.gauss_newton(centre, x[None, :n_fit], CENTRE_ITERATIONS // 2)
+    if not np.all(np.isfinite(theta)):
+        return None
+    whole = _Batch(system, params, x, dt, integrator, substeps)
+    miss = (whole.roll(theta)[0] - x)[n_fit:] * whole.weight
+    follow = (whole.roll(centre)[0] - x)[n_fit:] * whole.weight
+    den = float(np.sqrt(np.mean(follow ** 2)))
+    num = float(np.sqrt(np.mean(miss ** 2)))
+    return num / den if den > 0 and math.isfinite(num) else None
+
+
+def combine(value: float, boot: Bootstrap | None, name: str, *, rate_std: float = 0.0, relative: float = 0.0,
+            restarts: float = 0.0, gap: float = 0.0, encoder: bool = False, level: float = LEVEL) -> Interval | None:
+    """One constant's interval about `value` from the bootstrap's shares and the caller's:
+    rate_std (relative std of the frame rate), relative (a relative std from elsewhere: the
+    calibration), restarts (the kept restarts' std, widened here), encoder (add the bends'
+    share: a learned latent) and gap (a difference between two estimates of the same constant,
+    added as a bias). None without a bootstrap."""
+    from statistics import NormalDist
+    if boot is None or not math.isfinite(boot.std.get(name, math.nan)):
+        return None
+    z = NormalDist().inv_cdf(0.5 + level / 2)
+    scale = abs(value) / max(abs(boot.values[name]), 1e-300) if boot.values[name] else 1.0
+    timing = abs(boot.timing.get(name, 0.0)) * scale * rate_std
+    shares = {"residuals": boot.std[name] * scale * boot.quantile / z,  # as a normal std with the t's width
+              "timing": timing if math.isfinite(timing) else 0.0,
+              "calibration": abs(value) * relative,
+              "restarts": RESTART_WIDEN * restarts,
+              "encoder": math.hypot(boot.bend.get(name, 0.0) * scale, ENCODER_FLOOR * value) if encoder else 0.0}
+    half = math.hypot(z * math.sqrt(sum(s * s for s in shares.values())), gap)
+    shares["gap"] = abs(gap)
+    return Interval(value - half, value + half, value, shares)
+
+
+def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
+                     calibration: Mapping[str, float] | None = None, seed: int = 0) -> tuple[dict[str, Interval], Bootstrap | None]:
+    """Every constant's interval for a FitResult, about its reported value: the bootstrap of the
+    path the estimate follows (result.meta["trajectory"]["measured"] where the fit recorded a
+    measured path, else the best run's latent read as the equation's state through its gauge),
+    from the best run's constants; rate_std: the frame rate's relative std; calibration:
+    {name: relative std} a calibration adds. The restarts' spread is added for every constant
+    whose value is their mean, and the gap between the reported value (in the path's units) and
+    the one trajectory's. ({}, None) where no interval can be made."""
+    best = next((r for r in result.runs if r.index == result.best), None)
+    if best is None or not best.final or result.meta.get("interrupted"):
+        return {}, None
+    x = _path(result, best)
+    settings = result.settings
+    learned = not result.meta.get("measured")
+    boot = bootstrap(system, params, x, result.dt, best.final, seed=seed, learned=learned,
+                     integrator=str(settings.get("integrator", "rk4")), substeps=int(settings.get("substeps", 1)))
+    out: dict[str, Interval] = {}
+    own = set(result.meta.get("own_units", ()))
+    for name, est in result.parameters.items():
+        if boot is None or name not in boot.values:
+            continue
+        path_value = est.latent_value if est.calibrated and est.latent_value is not None else est.value
+        ratio = est.value / path_value if path_value else 1.0
+        gap = (path_value - boot.values[name]) * ratio
+        restarts = est.std if est.n_runs > 1 and name not in own else 0.0
+        iv = combine(est.value, boot, name, rate_std=rate_std, relative=(calibration or {}).get(name, 0.0),
+                     restarts=restarts, gap=gap, encoder=learned)
+        if iv is not None:
+            out[name] = iv
+    return out, boot
+
+
+def _path(result, best) -> np.ndarray:
+    """The path (T_train, k) the estimate follows, in the equation's state units."""
+    recorded = result.meta.get("trajectory")
+    if isinstance(recorded, Mapping) and recorded.get("measured") is not None:
+        return np.asarray(recorded["measured"], dtype=float)[: result.train_frames]
+    z = np.asarray(result.latent, dtype=float)[: result.train_frames]
+    s = np.array([best.gauge.get(st, {}).get("scale", 1.0) for st in result.states])
+    b = np.array([best.gauge.get(st, {}).get("offset", 0.0) for st in result.states])
+    return z * s + b
