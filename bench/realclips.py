@@ -512,7 +512,7 @@ def run_fitode(path: Path, clip: Clip, m: dict[str, Any], out_dir: Path, timeout
         rec["error"] = (p.stderr.strip().splitlines() or ["no output"])[-1]
         return rec
     par = (result.get("parameters") or {}).get(clip.fitode_param) or {}
-    rec.update({"value": par.get("value"), "std": par.get("std"), "unit": par.get("unit"),
+    rec.update({"value": par.get("value"), "std": par.get("std"), "interval": par.get("interval"), "unit": par.get("unit"),
                 "calibrated": par.get("calibrated"), "status": result.get("status"), "verdict": par.get("verdict"),
                 "warnings": result.get("warnings", [])})
     return rec

@@ -174,7 +174,8 @@ def fit_video(task: dict[str, Any]) -> dict[str, Any]:
                    runs=[{"init": r.init, "final": r.final, "steps": r.steps, "converged": r.converged,
                           "status": r.status, "loss": r.loss, "wall_s": r.wall_s} for r in res.runs],
                    selected=list(res.selected), warnings=list(rep.get("warnings", [])),
-                   verdict=rep["parameters"][q].get("verdict"), observation=res.meta["plan"]["observation"]["value"])
+                   verdict=rep["parameters"][q].get("verdict"), interval=rep["parameters"][q].get("interval"),
+                   observation=res.meta["plan"]["observation"]["value"])
         return out
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -188,3 +188,27 @@ def test_restarts_summary_takes_medians_and_ratios_to_the_first_count():
 def test_restarts_refuses_bad_counts_in_one_line(capsys):
     assert cli.main(["bench", "restarts", "--restarts", "1,x"]) == 2
     assert "--restarts" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # renders and fits videos: seconds even with --quick
+def test_coverage_quick(tmp_path, capsys):
+    assert cli.main(["bench", "coverage", "--quick", "--out", str(tmp_path), "--workers", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "95% intervals cover the truth in" in out and "false trust:" in out and "false alarm:" in out
+    rec = json.loads((tmp_path / "coverage.json").read_text())
+    assert rec["summary"]["clips"] == len(rec["videos"]) == 2
+
+
+def test_coverage_list_is_fixed_covers_every_case_and_counts_as_defined():
+    import coverage
+    first, again = coverage.clip_list(list(coverage.CASES), 0), coverage.clip_list(list(coverage.CASES), 0)
+    assert first == again and len(first) >= 40
+    assert {t["case"] for t in first[: len(coverage.CASES)]} == set(coverage.CASES)
+    trusted_far = {"truth": 1.0, "estimate": 1.08, "interval": [1.0, 1.16], "verdict": "trusted"}
+    right_doubted = {"truth": 1.0, "estimate": 1.01, "interval": [0.99, 1.03], "verdict": "ambiguous"}
+    outside_99 = {"truth": 1.0, "estimate": 1.03, "interval": [1.02, 1.04], "verdict": "trusted"}
+    assert coverage.judge(trusted_far)["false_trust"] and coverage.judge(trusted_far)["covered"]
+    assert coverage.judge(right_doubted)["false_alarm"] and not coverage.judge(right_doubted)["false_trust"]
+    assert coverage.judge(outside_99)["false_trust"] and not coverage.judge(outside_99)["covered"]
+    s = coverage.summary([trusted_far, right_doubted, outside_99])
+    assert (s["covered"], s["false_trust"], s["false_alarm"], s["right"]) == (2, 2, 1, 1)

@@ -44,6 +44,8 @@ def test_pendulum_length_from_video(tmp_path, capsys):
     L = report["parameters"]["L"]
     assert L["unit"] == "m"
     assert L["value"] == pytest.approx(TRUTH["L"], rel=0.03), text
+    low, high = L["interval"]  # every constant carries its 95% interval, shown as ± in the table
+    assert low < L["value"] < high and "±" in text
     # damping is the hard constant (the paper's own g1 was 80% off); ask only for the right size
     assert 0.05 < report["parameters"]["zeta"]["value"] < 0.4, text
     assert report["input"]["stride"] == 2 and report["input"]["dt"] == pytest.approx(2 / 30)

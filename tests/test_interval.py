@@ -1,0 +1,110 @@
+"""fitode.train.interval: intervals that cover the truth on paths whose noise hangs together in time."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from fitode.calibrate import AffineMap, CalibrationPoint, parse_calibration, scale_uncertainty
+from fitode.codegen import PhysicsBlock
+from fitode.eqparse import parse
+from fitode.train import interval as iv
+from fitode.train.assess import assess
+
+OSC = parse("x'' = -w2*x - c*x'")
+T, DT, RHO, NOISE = 120, 0.1, 0.8, 0.05
+
+
+def _oscillation(w2: float, c: float) -> np.ndarray:
+    block = PhysicsBlock(OSC, {}, dtype=torch.float64)
+    block.set_constants({"w2": w2, "c": c})
+    t = np.arange(block.n_context) * DT
+    head = torch.as_tensor(np.cos(math.sqrt(w2) * t) * np.exp(-c * t / 2))[None, :, None]
+    with torch.no_grad():
+        return block(head, T, DT)[0].numpy()
+
+
+def _ar1(rng, n: int, rho: float, sd: float) -> np.ndarray:
+    e = np.empty(n)
+    e[0] = rng.normal() * sd
+    for t in range(1, n):
+        e[t] = rho * e[t - 1] + rng.normal() * sd * math.sqrt(1 - rho ** 2)
+    return e[:, None]
+
+
+def _coverage(cases: int = 30, seed: int = 7) -> float:
+    rng = np.random.default_rng(seed)
+    hits = 0
+    for i in range(cases):
+        w2, c = rng.uniform(2.0, 6.0), rng.uniform(0.05, 0.3)
+        x = _oscillation(w2, c) + _ar1(rng, T, RHO, NOISE)
+        boot = iv.bootstrap(OSC, {}, x, DT, {"w2": w2 * 1.03, "c": c * 1.2}, iterations=32, seed=i)
+        assert boot is not None
+        hits += iv.combine(boot.values["w2"], boot, "w2").contains(w2)
+    return hits / cases
+
+
+@pytest.mark.slow
+def test_the_interval_covers_the_truth_under_noise_that_hangs_together_and_an_iid_one_does_not(monkeypatch):
+    covered = _coverage()
+    assert 0.83 <= covered <= 1.0, covered
+    # the same bootstrap with blocks of one frame and no corrections treats the frames as
+    # independent: on AR(1) noise its intervals are far too narrow
+    monkeypatch.setattr(iv, "block_length", lambda r: 1)
+    monkeypatch.setattr(iv, "block_bias", lambda rho, block: 1.0)
+    monkeypatch.setattr(iv, "leverage", lambda n, p, rho: 1.0)
+    assert _coverage() < 0.7
+
+
+def test_block_length_follows_the_correlation_of_the_residuals():
+    rng = np.random.default_rng(0)
+    white = iv.block_length(rng.normal(size=(400, 1)))
+    hung = iv.block_length(_ar1(rng, 400, 0.9, 1.0))
+    assert white <= 6 and hung >= 30
+    assert iv.block_length(_ar1(rng, 40, 0.99, 1.0)) <= 10  # at most a quarter of the frames
+    assert iv.block_bias(0.0, 5) == pytest.approx(1.0) and iv.block_bias(0.9, 10) > 1.3
+    r = iv.resample_blocks(np.arange(50.0)[:, None], 7, rng)
+    assert r.shape == (50, 1) and abs(r.mean()) < 1e-12
+
+
+def test_t_quantile():
+    assert iv.t_quantile(0.95, 10) == pytest.approx(2.228, abs=0.003)
+    assert iv.t_quantile(0.95, 1000) == pytest.approx(1.962, abs=0.002)
+
+
+def test_a_clean_path_gives_a_narrow_interval_about_the_truth_and_a_frame_rate_share():
+    x = _oscillation(4.0, 0.1) + _ar1(np.random.default_rng(1), T, 0.0, 1e-4)
+    boot = iv.bootstrap(OSC, {}, x, DT, {"w2": 4.2, "c": 0.12}, iterations=16)
+    assert boot.values["w2"] == pytest.approx(4.0, rel=1e-3)
+    assert boot.timing["w2"] == pytest.approx(-2 * 4.0, rel=0.02)  # w2 goes as time**-2
+    no_rate = iv.combine(4.0, boot, "w2")
+    rate = iv.combine(4.0, boot, "w2", rate_std=0.01)
+    assert no_rate.relative_width < 0.002
+    assert rate.high - 4.0 == pytest.approx(1.96 * 0.08, rel=0.05)  # 2 * 1% of 4, at 95%
+    gap = iv.combine(4.0, boot, "w2", gap=0.5)
+    assert gap.contains(4.49) and not no_rate.contains(4.49)
+
+
+def test_calibration_points_carry_their_uncertainty():
+    pts = parse_calibration("h(0)=0.07±0.002; h(25) = 0.01 +- 0.001; h(10)=0.05", ["h"])
+    assert [p.std for p in pts] == [0.002, 0.001, 0.0]
+    two = [CalibrationPoint("h", 0.0, 1.0, 0.03), CalibrationPoint("h", 1.0, 3.0, 0.04)]
+    t = np.linspace(0, 1, 11)
+    rel = scale_uncertainty(two, t, t[:, None], ["h"], {"h": AffineMap(2.0, 1.0, 2)})
+    assert rel["h"] == pytest.approx(0.05 / 2.0, rel=1e-6)  # sqrt(0.03^2 + 0.04^2) over the rise 2
+
+
+def _judged(interval_check):
+    from tests.test_assess import _analysis, _result, _run
+    result = _result([_run(0, 4.0), _run(1, 4.01)])
+    result.checks["interval"] = interval_check
+    return assess(result, _analysis()).verdicts["k"]
+
+
+def test_the_verdict_hears_the_held_out_quarter():
+    assert _judged({"held_out": 1.2}).verdict == "trusted"
+    worse = _judged({"held_out": 7.0})
+    assert worse.verdict == "ambiguous" and "last quarter" in worse.reason
+    assert _judged(None).verdict == "ambiguous"
