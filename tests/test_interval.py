@@ -14,7 +14,7 @@ from fitode.train import interval as iv
 from fitode.train.assess import assess
 
 OSC = parse("x'' = -w2*x - c*x'")
-T, DT, RHO, NOISE = 120, 0.1, 0.8, 0.05
+T, DT, RHO, NOISE = 200, 0.1, 0.7, 0.05
 
 
 def _oscillation(w2: float, c: float) -> np.ndarray:

@@ -8,8 +8,9 @@ The estimate is a set of constants for which one trajectory of the equation foll
   counts T independent frames is too narrow, by a factor that grows with the correlation. The
   residuals are resampled in moving blocks along time (circular, centred), the blocks as long as
   the residuals stay correlated (block_length: twice their integrated autocorrelation time), added
-  to the fitted trajectory and refitted (fitode.train.trajectory.fit_trajectory, from the estimate,
-  with few iterations: a refit only moves as far as the noise moves the optimum). The spread of the
+  to the fitted trajectory and refitted from the estimate with a few Gauss-Newton steps that keep
+  the estimate's Jacobian (a refit only moves as far as the noise moves the optimum; all refits
+  are one batched rollout per step: fit_trajectory's L-BFGS took 8 s a refit for 300 frames here). The spread of the
   refits is the residuals' share, and a Student t quantile for the few refits makes it a 95% one.
 - the frame timing. Every constant scales with a power of time (a frequency squared, g/L); the
   refit of the same path with dt stretched by TIME_STEP gives that sensitivity for any equation,
@@ -37,9 +38,9 @@ import numpy as np
 
 LEVEL = 0.95
 ITERATIONS = 48  # refits, all in one batch
-REFIT_ITERATIONS = 3  # Gauss-Newton steps per refit, from the one trajectory: the noise moves it little
+REFIT_ITERATIONS = 4  # chord (Gauss-Newton) steps per refit, from the one trajectory: the noise moves it little
 CENTRE_ITERATIONS = 12  # Gauss-Newton steps from the estimate to the one trajectory
-TIME_STEP = 0.01  # dt stretched by 1% to read each constant's sensitivity to the frame rate
+TIME_STEP = 0.001  # dt stretched by 0.1% to read each constant's sensitivity to the frame rate
 RESTART_WIDEN = 2.0
 # a learned (free) latent can bend where the frames do not hold it, which no residual shows (the
 # bundled example's L 0.29% off with its restarts agreeing to 0.002%, the paper's motion video's g1
@@ -50,6 +51,7 @@ BEND = 0.01
 ENCODER_FLOOR = 0.002
 BLOCK_TIMES = 3  # blocks three autocorrelation times long: what is left is block_bias's
 MAX_RHO = 0.98
+DAMPINGS = (1e-9, 1e-5, 1e-2, 1.0)  # Levenberg-Marquardt dampings tried at once, relative to the diagonal
 HELD_OUT = 0.25  # the last quarter of the path, predicted from a fit of the rest
 MIN_KEPT = 0.6  # fewer refits than this fraction succeeded: no interval from the residuals
 RATE_CONTAINER_STD = 3e-4  # the container's nominal rate: 59.985 stated against 60.000 stamped (bob clip)
@@ -237,36 +239,60 @@ class _Batch:
         c = np.mean(r.reshape(len(theta), -1) ** 2, axis=1)
         return np.where(np.isfinite(c), c, np.inf)
 
+    def jacobian(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The rollouts (N, T, k) at theta (N, p) and their weighted Jacobians (N, p, T*k), by
+        forward differences, all in one batched rollout."""
+        h = self.steps(theta)
+        batch = np.repeat(theta[:, None, :], self.p + 1, axis=1)
+        batch[:, 1:, :] += np.eye(self.p)[None] * h[:, None, :]
+        rolled = self.roll(batch.reshape(-1, self.p)).reshape(len(theta), self.p + 1, self.T, self.k)
+        jac = ((rolled[:, 1:] - rolled[:, :1]) * self.weight / h[:, :, None, None]).reshape(len(theta), self.p, -1)
+        return rolled[:, 0], jac
+
     def gauss_newton(self, theta: np.ndarray, targets: np.ndarray, iterations: int) -> np.ndarray:
-        """Levenberg-Marquardt steps of every theta (N, p) towards its target (N, T, k), a step
-        kept only where it lowers the misfit; a draw whose rollout fails is NaN."""
+        """Levenberg-Marquardt steps of every theta (N, p) towards its target (N, T, k): each
+        step tries DAMPINGS in one rollout and keeps the one that lowers the misfit most (none:
+        theta stays); stops early once no step gains; NaN where the rollout fails."""
         theta = theta.copy()
-        damping = np.full(len(theta), 1e-8)
-        eye = np.eye(self.p)[None]
+        n, tries = len(theta), len(DAMPINGS)
+        eye = np.eye(self.p)[None, None]
         for _ in range(iterations):
-            h = self.steps(theta)
-            batch = np.repeat(theta[:, None, :], self.p + 1, axis=1)
-            batch[:, 1:, :] += eye * h[:, None, :]
-            rolled = self.roll(batch.reshape(-1, self.p)).reshape(len(theta), self.p + 1, self.T, self.k)
-            r = ((rolled[:, 0] - targets) * self.weight).reshape(len(theta), -1)
-            jac = ((rolled[:, 1:] - rolled[:, :1]) * self.weight / h[:, :, None, None]).reshape(len(theta), self.p, -1)
+            rolled, jac = self.jacobian(theta)
+            r = ((rolled - targets) * self.weight).reshape(n, -1)
             normal = jac @ jac.transpose(0, 2, 1)
             grad = (jac @ r[:, :, None])[:, :, 0]
             now = np.mean(r ** 2, axis=1)
-            ok = np.all(np.isfinite(normal.reshape(len(theta), -1)), axis=1) & np.isfinite(now)
+            ok = np.all(np.isfinite(normal.reshape(n, -1)), axis=1) & np.isfinite(now)
             if not ok.any():
                 return np.full_like(theta, np.nan)
+            normal[~ok], grad[~ok] = np.eye(self.p), 0.0
             diag = np.maximum(np.einsum("nii->ni", normal), 1e-300)
-            trial = theta.copy()
-            for _ in range(4):  # raise the damping where a step does not lower the misfit
-                lhs = normal[ok] + (damping[ok, None] * diag[ok])[:, :, None] * eye
-                trial[ok] = theta[ok] - np.linalg.solve(lhs, grad[ok][:, :, None])[:, :, 0]
-                better = self.cost(trial, targets) < now
-                damping = np.where(better, damping / 10, damping * 100)
-                if better[ok].all():
-                    break
-            theta = np.where((better & ok)[:, None], trial, theta)
+            lhs = normal[:, None] + (np.asarray(DAMPINGS)[None, :, None] * diag[:, None, :])[..., None] * eye
+            # pinv: at a near-exact fit the starting frames' columns can be all but collinear
+            trial = theta[:, None, :] - (np.linalg.pinv(lhs, rcond=1e-13) @ grad[:, None, :, None])[..., 0]
+            costs = self.cost(trial.reshape(-1, self.p), np.repeat(targets, tries, axis=0)).reshape(n, tries)
+            pick = np.argmin(costs, axis=1)
+            gain = now - costs[np.arange(n), pick]
+            better = ok & (gain > 0)
+            theta = np.where(better[:, None], trial[np.arange(n), pick], theta)
             theta[~ok] = np.nan
+            if np.all(~better | (gain <= 1e-12 * np.maximum(now, 1e-300))):
+                break
+        return theta
+
+    def chord(self, centre: np.ndarray, targets: np.ndarray, iterations: int) -> np.ndarray:
+        """Refits of many targets near the centre's trajectory (N, T, k) from the centre (1, p):
+        Gauss-Newton steps with the centre's Jacobian kept (the chord method: a refit moves
+        little, and one Jacobian for every refit makes each step one rollout per refit, not
+        p + 1); NaN where a rollout fails."""
+        _, jac = self.jacobian(centre)
+        solve = np.linalg.pinv(jac[0] @ jac[0].T, rcond=1e-13) @ jac[0]  # (p, T*k)
+        theta = np.repeat(centre, len(targets), axis=0)
+        for _ in range(iterations):
+            r = ((self.roll(theta) - targets) * self.weight).reshape(len(theta), -1)
+            theta = theta - r @ solve.T
+        bad = ~np.all(np.isfinite(self.roll(theta).reshape(len(theta), -1)), axis=1)
+        theta[bad] = np.nan
         return theta
 
 
@@ -294,7 +320,7 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
         block = block_length(resid)
         rng = np.random.default_rng(seed)
         targets = np.stack([fitted + resample_blocks(resid, block, rng) for _ in range(iterations)])
-        draws = batch.gauss_newton(np.repeat(centre, iterations, axis=0), targets, refit_iterations)
+        draws = batch.chord(centre, targets, refit_iterations)
         draws = draws[np.all(np.isfinite(draws), axis=1)]
         if len(draws) < max(2, MIN_KEPT * iterations):
             return None
@@ -328,7 +354,7 @@ def bends(batch: _Batch, centre: np.ndarray, fitted: np.ndarray, iterations: int
     ramp = np.linspace(-1.0, 1.0, len(fitted))[:, None]
     shapes = [u * ramp, u * np.abs(u), u ** 3]
     targets = np.stack([fitted + BEND * half * s for s in shapes])
-    bent = batch.gauss_newton(np.repeat(centre, len(shapes), axis=0), targets, iterations)
+    bent = batch.chord(centre, targets, iterations)
     change = bent[:, : batch.m] - centre[:, : batch.m]
     if not np.all(np.isfinite(change)):
         return {}
