@@ -201,14 +201,9 @@ def run(args: argparse.Namespace) -> int:
         tasks = tasks[: args.clips]
     bc.progress(f"coverage: {len(tasks)} clips on {args.workers} worker(s)")
     t0 = time.perf_counter()
-    count = [0]
-
-    def done(i, v):
-        count[0] += 1
-        bc.progress(f"  [{count[0]}/{len(tasks)}] {v['case']}: {v.get('quantity')} = {v.get('estimate', math.nan):.5g} "
-                    f"(truth {v['truth']:.5g}) {v.get('interval')} {v.get('verdict')}")
-
-    results = bc.run_pool(fit_case, tasks, args.workers, on_done=done)
+    results = bc.run_pool(fit_case, tasks, args.workers, on_done=lambda i, v: bc.progress(
+        f"  clip {i + 1} of {len(tasks)}, {v['case']}: {v.get('quantity')} = {v.get('estimate', math.nan):.5g} "
+        f"(truth {v['truth']:.5g}), 95% {v.get('interval')}, {v.get('verdict')}"))
     record = {"bench": "coverage", "quick": bool(args.quick), "settings": {"cases": cases, "seed": args.seed,
               "clips": len(tasks), "workers": args.workers}, "summary": summary(results), "videos": results,
               "wall_s": time.perf_counter() - t0, "machine": bc.machine_info()}
