@@ -154,7 +154,8 @@ def summary(videos: list[dict[str, Any]]) -> dict[str, Any]:
     n = len(judged)
     right = [j for j in judged if j["off"] <= RIGHT]
     trusted = [v for v in videos if v.get("verdict") == "trusted"]
-    return {"clips": n, "covered": sum(j["covered"] for j in judged), "with_interval": sum(j["has_interval"] for j in judged),
+    return {"clips": n, "covered": sum(j["covered"] for j in judged),
+            "with_interval": sum(j["has_interval"] for j in judged),
             "trusted": len(trusted), "false_trust": sum(j["false_trust"] for j in judged),
             "right": len(right), "false_alarm": sum(j["false_alarm"] for j in judged)}
 

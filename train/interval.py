@@ -6,12 +6,13 @@ The estimate is a set of constants for which one trajectory of the equation foll
 - the residuals. The fitted trajectory leaves residuals that hang together from frame to frame
   (motion blur, the codec, a tracker's wobble, what the equation leaves out), so a formula that
   counts T independent frames is too narrow, by a factor that grows with the correlation. The
-  residuals are resampled in moving blocks along time (circular, centred), the blocks as long as
-  the residuals stay correlated (block_length: twice their integrated autocorrelation time), added
-  to the fitted trajectory and refitted from the estimate with a few Gauss-Newton steps that keep
-  the estimate's Jacobian (a refit only moves as far as the noise moves the optimum; all refits
-  are one batched rollout per step: fit_trajectory's L-BFGS took 8 s a refit for 300 frames here). The spread of the
-  refits is the residuals' share, and a Student t quantile for the few refits makes it a 95% one.
+  residuals are resampled in moving blocks along time (circular, centred), the blocks three times
+  as long as the residuals stay correlated (block_length), added to the fitted trajectory and
+  refitted from the estimate with a few Gauss-Newton steps that keep the estimate's Jacobian (a
+  refit only moves as far as the noise moves the optimum; all refits are one batched rollout per
+  step: fit_trajectory's L-BFGS took 8 s a refit for 300 frames here). The spread of the refits,
+  corrected for what short blocks (block_bias) and the fit itself (leverage) take out of the
+  residuals, is their share, and a Student t quantile for the few refits makes it a 95% one.
 - the frame timing. Every constant scales with a power of time (a frequency squared, g/L); the
   refit of the same path with dt stretched by TIME_STEP gives that sensitivity for any equation,
   and a relative uncertainty of the frame rate (rate_std: the container's nominal rate, or 0 for
@@ -93,7 +94,6 @@ class Bootstrap:
     wall_s: float
     misfit: float  # the one trajectory's RMS residual over each state's spread
     residual_rms: list[float]  # per state, in the path's units
-    noise_rms: list[float]  # per state: the frame-to-frame noise, from second differences
     held_out: float | None = None  # the held-out prediction's miss over the residuals there (_held_out)
     bend: dict[str, float] = field(default_factory=dict)  # the constants' RMS change under BEND-sized bends
 
@@ -102,7 +102,7 @@ class Bootstrap:
                 "iterations": self.iterations, "kept": self.kept, "t_quantile": self.quantile,
                 "wall_s": self.wall_s, "trajectory": dict(self.values), "std": dict(self.std),
                 "dlog_dt": dict(self.timing), "misfit": self.misfit, "residual_rms": list(self.residual_rms),
-                "noise_rms": list(self.noise_rms), "held_out": self.held_out, "bend": dict(self.bend)}
+                "held_out": self.held_out, "bend": dict(self.bend)}
 
 
 def correlation(residuals: np.ndarray) -> float:
@@ -166,16 +166,6 @@ def resample_blocks(residuals: np.ndarray, block: int, rng: np.random.Generator)
     idx = (starts[:, None] + np.arange(block)[None, :]).reshape(-1)[:n] % n
     out = r[idx]
     return out - out.mean(axis=0)
-
-
-def noise_level(x: np.ndarray) -> np.ndarray:
-    """Per state, the frame-to-frame noise of a path: the spread of its second differences over
-    sqrt(6) (white noise's ratio; a smooth motion adds little to a second difference)."""
-    x = np.asarray(x, dtype=float).reshape(len(x), -1)
-    if len(x) < 4:
-        return np.full(x.shape[1], math.nan)
-    d2 = np.diff(x, n=2, axis=0)
-    return 1.4826 * np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0) / math.sqrt(6)
 
 
 def t_quantile(level: float, dof: int) -> float:
@@ -298,7 +288,8 @@ class _Batch:
 
 def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping[str, float], *,
               iterations: int = ITERATIONS, seed: int = 0, integrator: str = "rk4", substeps: int = 1,
-              refit_iterations: int = REFIT_ITERATIONS, level: float = LEVEL, learned: bool = False) -> Bootstrap | None:
+              refit_iterations: int = REFIT_ITERATIONS, level: float = LEVEL,
+              learned: bool = False) -> Bootstrap | None:
     """The moving-block bootstrap of the path x (T, k) about one trajectory of the equation
     fitted from `values` (see the module docstring). learned: x is a learned latent, whose
     bends are measured too (bends). None where the path cannot be fitted as one trajectory or
@@ -341,7 +332,7 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
                      wall_s=time.perf_counter() - began,
                      misfit=float(np.sqrt(np.mean((resid * batch.weight) ** 2))),
                      residual_rms=[float(v) for v in np.sqrt(np.mean(resid ** 2, axis=0))],
-                     noise_rms=[float(v) for v in noise_level(x)], held_out=held_out, bend=bend)
+                     held_out=held_out, bend=bend)
 
 
 def bends(batch: _Batch, centre: np.ndarray, fitted: np.ndarray, iterations: int) -> dict[str, float]:
@@ -399,14 +390,15 @@ def combine(value: float, boot: Bootstrap | None, name: str, *, rate_std: float 
               "timing": timing if math.isfinite(timing) else 0.0,
               "calibration": abs(value) * relative,
               "restarts": RESTART_WIDEN * restarts,
-              "encoder": math.hypot(boot.bend.get(name, 0.0) * scale, ENCODER_FLOOR * value) if encoder else 0.0}
+              "encoder": math.hypot(boot.bend.get(name, 0.0) * scale, ENCODER_FLOOR * abs(value)) if encoder else 0.0}
     half = math.hypot(z * math.sqrt(sum(s * s for s in shares.values())), gap)
     shares["gap"] = abs(gap)
     return Interval(value - half, value + half, value, shares)
 
 
 def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
-                     calibration: Mapping[str, float] | None = None, seed: int = 0) -> tuple[dict[str, Interval], Bootstrap | None]:
+                     calibration: Mapping[str, float] | None = None,
+                     seed: int = 0) -> tuple[dict[str, Interval], Bootstrap | None]:
     """Every constant's interval for a FitResult, about its reported value: the bootstrap of the
     path the estimate follows (result.meta["trajectory"]["measured"] where the fit recorded a
     measured path, else the best run's latent read as the equation's state through its gauge),
