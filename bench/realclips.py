@@ -629,8 +629,11 @@ def run(args: argparse.Namespace) -> int:
             fit_txt = ""
             if key == clip.fitode_param or (key == "L" and clip.fitode_param == "L"):
                 f = rec.get("fitode")
+                iv = (f or {}).get("interval")
+                within = "" if not iv else f", 95% [{iv[0]:.5g}, {iv[1]:.5g}]" + (
+                    " holds the tracker's" if iv[0] <= r["value"] <= iv[1] else " misses the tracker's")
                 fit_txt = ("not run" if f is None else f.get("error")
-                           or f"{_fmt(f.get('value'), f.get('std'))} ({f.get('verdict') or 'no verdict'})")
+                           or f"{_fmt(f.get('value'), f.get('std'))}{within} ({f.get('verdict') or 'no verdict'})")
             table.append({"clip": name, "quantity": r["quantity"], "tracker": _fmt(r["value"], r["err"]),
                           "stated": stated, "fitode": fit_txt})
         bc.progress(f"{name}: done in {time.perf_counter() - t0:.0f} s")
