@@ -128,7 +128,7 @@ def _fit_oscillator(task: dict[str, Any]) -> dict[str, Any]:
             return out
         p = outcome.report["parameters"][q]
         out.update(status=outcome.report.get("status"), estimate=p["value"], interval=p.get("interval"),
-                   verdict=p.get("verdict"), fit_s=time.perf_counter() - t0)
+                   verdict=p.get("verdict"), reason=p.get("verdict_reason"), fit_s=time.perf_counter() - t0)
         return out
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -175,6 +175,7 @@ def fit_video(task: dict[str, Any]) -> dict[str, Any]:
                           "status": r.status, "loss": r.loss, "wall_s": r.wall_s} for r in res.runs],
                    selected=list(res.selected), warnings=list(rep.get("warnings", [])),
                    verdict=rep["parameters"][q].get("verdict"), interval=rep["parameters"][q].get("interval"),
+                   reason=rep["parameters"][q].get("verdict_reason"),
                    observation=res.meta["plan"]["observation"]["value"])
         return out
     finally:
