@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 NEIGHBOURS = 5
+NYQUIST_FRAMES = 2.5
 
 
 def separation_score(latent: np.ndarray, coefs: np.ndarray, exclude: int, neighbours: int = NEIGHBOURS) -> float:
@@ -57,7 +58,10 @@ def dominant_period(series: np.ndarray, dt: float) -> float | None:
     power = (np.abs(np.fft.rfft(x * np.hanning(n)[:, None], n=pad, axis=0)) ** 2).sum(axis=1)
     freqs = np.fft.rfftfreq(pad, dt)
     lo = 1.5 / (n * dt)  # at least one and a half cycles in the clip
-    ok = freqs > lo
+    # and at least NYQUIST_FRAMES frames a cycle: a peak at two frames is flicker (a codec's
+    # alternate frames: a generated oscillator's frames "repeated every 2 frames" with the
+    # latent and the equation agreeing on 16), no motion the frames can show
+    ok = (freqs > lo) & (freqs < 1.0 / (NYQUIST_FRAMES * dt))
     if not ok.any() or power[ok].max() <= 0:
         return None
     band = power[ok]
