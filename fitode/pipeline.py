@@ -165,7 +165,7 @@ def read_clip(video: str | Path, read: ReadOptions = ReadOptions(), calibration:
     n_frames = int(clip.frames.shape[0])
     if n_frames == 0:
         raise FitodeError(f"{video}: no frames to fit (check --start/--end)")
-    t0 = float(clip.start_frame) / float(clip.fps)
+    t0 = float(clip.times[0])  # the first frame's real time: repeats dropped and timestamps honoured
     if calibration:
         from fitode.calibrate import check_times
         check_times(calibration, t0, t0 + (n_frames - 1) * clip.dt, slack=0.5 * clip.dt)

@@ -21,7 +21,7 @@ class Clip:
 
     frames: np.ndarray            # float32 (T, C, H, W) in [0, 1]
     fps: float                    # real-time frame rate of the source (after the fps override)
-    fps_source: str               # "container" (read from the file) or "user" (the fps argument)
+    fps_source: str               # "container" (read from the file), "timestamps" (the frames' own) or "user" (--fps)
     stride: int                   # every stride-th source frame is kept
     dt: float                     # stride / fps, seconds between kept frames
     stride_reason: str            # why this stride, one sentence
@@ -37,16 +37,31 @@ class Clip:
     color: bool = False
     mask: str | None = None
     notes: list[str] = field(default_factory=list)  # anything unusual met while reading
+    frame_times: np.ndarray | None = None  # real time of every kept frame (s), from the container's stamps
+    timing: list[str] = field(default_factory=list)  # what the stamps changed (fitode.video.timing), one line each
+    capture_fps: float | None = None  # the capture rate a slow-motion clip's metadata records
 
     @property
     def frame_indices(self) -> np.ndarray:
-        """Source frame index of every kept frame."""
+        """Source frame index of every kept frame (where repeats were dropped or the frames
+        resampled, the nearest index at the clip's rate)."""
+        if self.frame_times is not None and self.timing:
+            return np.rint(self.times * self.fps).astype(np.int64)
         return self.start_frame + self.stride * np.arange(len(self.frames))
 
     @property
     def times(self) -> np.ndarray:
         """Time of every kept frame in seconds from the start of the source (not of the trim)."""
-        return self.frame_indices / self.fps
+        if self.frame_times is not None and self.timing:
+            return np.asarray(self.frame_times, np.float64)
+        return (self.start_frame + self.stride * np.arange(len(self.frames))) / self.fps
+
+    def slow_motion_fps(self) -> float | None:
+        """The --fps a slow-motion clip needs, where its metadata records a capture rate above
+        the rate in use (None otherwise)."""
+        if self.fps_source == "user" or not self.capture_fps or self.capture_fps < 1.5 * self.fps:
+            return None
+        return self.capture_fps
 
     @property
     def size(self) -> tuple[int, int]:
@@ -63,12 +78,24 @@ class Clip:
             said = (f"; the container says {self.fps_container:.6g}" if self.fps_container
                     else "")
             lines.append(f"fps: {self.fps:.6g} (given by --fps{said})")
+        elif self.fps_source == "timestamps":
+            said = f"; the container says {self.fps_container:.6g}" if self.fps_container else ""
+            lines.append(f"fps: {self.fps:.6g} (from the frames' timestamps{said})")
         else:
             lines.append(f"fps: {self.fps:.6g} (from the container)")
+        lines += [f"time: {line}" for line in self.timing]
+        slow = self.slow_motion_fps()
+        if slow:
+            lines.append(f"hint: the metadata says this clip was recorded at {slow:.6g} fps and plays at "
+                         f"{self.fps:.6g} (slow motion): pass --fps {slow:.6g} for real time; at "
+                         f"{self.fps:.6g} fps an acceleration comes out {(slow / self.fps) ** 2:.3g}x too small")
         last = self.start_frame + self.stride * (t - 1) if t else self.start_frame
         every = "every frame" if self.stride == 1 else f"every {_ordinal(self.stride)}"
-        lines.append(f"frames used: {t} (source frames {self.start_frame} to {last}, {every}; "
-                     f"{self.start_frame / self.fps:.3f} s to {last / self.fps:.3f} s)")
+        if self.frame_times is not None and self.timing and t:
+            lines.append(f"frames used: {t} ({every}; {self.times[0]:.3f} s to {self.times[-1]:.3f} s)")
+        else:
+            lines.append(f"frames used: {t} (source frames {self.start_frame} to {last}, {every}; "
+                         f"{self.start_frame / self.fps:.3f} s to {last / self.fps:.3f} s)")
         h, w = self.size
         crop = (f", cropped to x={self.roi[0]} y={self.roi[1]} w={self.roi[2]} h={self.roi[3]}"
                 if self.roi else "")

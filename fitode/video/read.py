@@ -13,6 +13,7 @@ from fitode.video.mask import Mask
 from fitode.video.preprocess import Preprocess, check_roi_inside, default_size
 from fitode.video.sources import (ArraySource, Source, container_fps_problem, open_source,
                                   source_sha256)
+from fitode.video.timing import FrameTimes, frame_times, resample, uniform_fit
 
 
 def read_video(path: str | Path, *, fps: float | None = None, start: float | None = None,
@@ -113,6 +114,7 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
     notes: list[str] = []
     buf: np.ndarray | None = None
     kept = 0
+    stamps: list[float | None] = []
     hw: tuple[int, int] | None = None
     prep: Preprocess | None = None
     the_mask: Mask | None = None
@@ -150,6 +152,7 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
                     if buf is None or kept == buf.shape[0]:
                         buf = _grow(buf, kept, small.shape, todo, first, explicit)
                     buf[kept] = small
+                    stamps.append(src.timestamp())
                     kept += 1
             i += 1
             bar.update(1)
@@ -170,6 +173,19 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
         raise VideoError(f"--end {end:g} s is past the end of the video ({duration:.3f} s, "
                          f"{decoded} frames at {fps_used:.6g} fps)")
     assert buf is not None and hw is not None
+
+    timing = _frame_times(buf[:kept], stamps, fps_used, fps_source, explicit)
+    if timing.grid is not None:
+        assert timing.stamps is not None
+        buf, kept = resample(buf[timing.keep], timing.stamps, timing.grid), len(timing.grid)
+        times = timing.grid
+    elif len(timing.keep) < kept:
+        buf, kept = buf[timing.keep], len(timing.keep)
+        times = timing.stamps
+    else:
+        times = timing.stamps
+    if timing.rate != fps_used:  # frame_times keeps the nominal rate where the stamps agree with it
+        fps_used, fps_source = timing.rate, ("timestamps" if fps_source == "container" else fps_source)
 
     if explicit is not None:
         k, reason = explicit, "given by --stride"
@@ -193,12 +209,32 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
         notes.append(src.note)
     if the_mask is not None and the_mask.note:
         notes.append(the_mask.note)
+    kept_times = None if times is None else np.asarray(times[:kept:k] if explicit is None and k > 1 else times[:kept])
     return Clip(frames=frames, fps=fps_used, fps_source=fps_source, stride=k, dt=k / fps_used,
                 stride_reason=reason, path=str(p), sha256=sha, source_size=hw,
                 n_source_frames=n_source, start_frame=first,
                 end_frame=decoded if stop is None else stop, kind=src.kind,
                 fps_container=src.container_fps, roi=roi, color=color,
-                mask=None if mask_path is None else str(mask_path), notes=notes)
+                mask=None if mask_path is None else str(mask_path), notes=notes,
+                frame_times=kept_times, timing=timing.lines, capture_fps=src.capture_fps)
+
+
+def _frame_times(frames: np.ndarray, stamps: list, fps: float, fps_source: str,
+                 explicit: int | None) -> FrameTimes:
+    """The timestamps checked (fitode.video.timing); a user's --fps rescales them to its rate."""
+    if len(stamps) < 3 or any(t is None for t in stamps):
+        return FrameTimes(np.arange(len(frames)), fps)
+    t = np.asarray(stamps, np.float64)
+    step = explicit or 1
+    scale = 1.0
+    if fps_source == "user":
+        _, interval, _ = uniform_fit(t)
+        if not interval > 0:
+            return FrameTimes(np.arange(len(frames)), fps)
+        scale = (step / interval) / fps  # the stamps' own rate over the one given
+    timing = frame_times(frames, t, fps / step, consecutive=step == 1, scale=scale)
+    timing.rate *= step  # frame_times saw every step-th frame
+    return timing
 
 
 def _grow(buf: np.ndarray | None, kept: int, shape: tuple[int, ...], hint: int | None,

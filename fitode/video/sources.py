@@ -26,6 +26,7 @@ class Source:
     kind = "video"
     container_fps: float | None = None
     count_hint: int | None = None
+    capture_fps: float | None = None  # the rate a slow-motion clip was recorded at, from its metadata
     order = "BGR"  # channel order of 3-channel frames
 
     def grab(self) -> bool:
@@ -37,6 +38,10 @@ class Source:
     def unit(self, frame: np.ndarray) -> tuple[float, float]:
         """(scale, offset) so that (frame - offset) * scale lies in [0, 1]."""
         return dtype_unit(frame.dtype)
+
+    def timestamp(self) -> float | None:
+        """The container's presentation time of the frame last grabbed, in seconds (None: none)."""
+        return None
 
     def close(self) -> None:
         pass
@@ -76,9 +81,16 @@ class VideoSource(Source):
         self.container_fps = float(fps) if math.isfinite(fps) else None
         count = self.cap.get(cv2.CAP_PROP_FRAME_COUNT)
         self.count_hint = int(count) if math.isfinite(count) and 0 < count < 1e8 else None
+        self.capture_fps = capture_fps(path)
 
     def grab(self) -> bool:
         return bool(self.cap.grab())
+
+    def timestamp(self) -> float | None:
+        # OpenCV's position after a grab is that frame's own presentation time, edit lists applied:
+        # on the clips in view it matched PyAV's packet times to the microsecond
+        ms = self.cap.get(cv2.CAP_PROP_POS_MSEC)
+        return ms / 1000.0 if math.isfinite(ms) else None
 
     def retrieve(self) -> np.ndarray:
         ok, frame = self.cap.retrieve()
@@ -88,6 +100,34 @@ class VideoSource(Source):
 
     def close(self) -> None:
         self.cap.release()
+
+
+# Where cameras write the rate a slow-motion clip was recorded at (it plays back at the container's rate)
+CAPTURE_RATE_TAGS = ("com.android.capture.fps", "com.apple.quicktime.capture.fps")
+
+
+def capture_fps(path: Path) -> float | None:
+    """The capture rate a slow-motion clip's metadata records (Android's com.android.capture.fps,
+    Apple's capture tags), or None: no such tag, or PyAV is missing or cannot open the file."""
+    try:
+        import av
+    except ImportError:
+        return None
+    try:
+        with av.open(str(path)) as container:
+            tags = dict(container.metadata)
+            for stream in container.streams.video[:1]:
+                tags.update(stream.metadata)
+    except Exception:  # noqa: BLE001 - metadata is advice; OpenCV decides whether the file reads
+        return None
+    for key in CAPTURE_RATE_TAGS:
+        try:
+            value = float(tags.get(key, ""))
+        except ValueError:
+            continue
+        if math.isfinite(value) and 0 < value <= MAX_FPS:
+            return value
+    return None
 
 
 def _natural_key(name: str) -> list:
