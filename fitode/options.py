@@ -72,8 +72,9 @@ _TRAINING_HELP = {
     "integrator": (None, "ODE integrator"),
     "encoder": (None, "frame encoder: auto (linear for a single first-order linear equation, else mlp), "
                       "mlp (the paper's), cnn, or linear (an affine map of the frames: for decays, see README)"),
-    "light": (None, "how the brightness observation reads pixel values: srgb (decoded to linear light, as video "
-                    "stores them) or linear (already proportional to light)"),
+    "light": (None, "how the brightness observation reads pixel values: auto (the default: whichever curve makes "
+                    "the change one pattern), srgb (decoded to linear light, as phone video stores them) or linear "
+                    "(already proportional to light)"),
     "device": (None, "where to train"),
     "seed": ("N", "random seed"),
     "threads": ("N", "torch threads for the fit"),

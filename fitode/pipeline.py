@@ -124,6 +124,9 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     source_measurement(result, clip)
     for line in rep.run_lines(result):
         say(line)
+    for line in _slow_motion_hint(result, clip):
+        say(line)
+        result.warnings.append(line)
     for line in (result.calibration or {}).get("lines", []):
         say(line)
     rep.complete_report(report, result, analysis, t0)
@@ -219,6 +222,15 @@ def plot_track(path: Path, result, clip, video, t0: float) -> Path:
                             readings=readings(m, result.latent, result.rollout, result.states),
                             stretch=stretch, train_frames=result.train_frames,
                             calibrated={s: (v["a"], v["b"]) for s, v in maps.items()})
+
+
+def _slow_motion_hint(result, clip) -> list[str]:
+    """Which --fps would make a known constant (g) right, where it came out a slow-motion factor squared off."""
+    from fitode.eqparse.parser import KNOWN_CONSTANTS
+    from fitode.video.timing import slow_motion_hint
+    own = bool(result.meta.get("physical_units"))
+    values = {n: e.value for n, e in result.parameters.items() if n in KNOWN_CONSTANTS and (e.calibrated or own)}
+    return slow_motion_hint(KNOWN_CONSTANTS, values, float(clip.fps))
 
 
 def _read(video, **kw):

@@ -19,7 +19,8 @@ ENCODER_CHOICES = ("auto",) + ENCODER_NAMES  # auto: linear where a free encoder
 # what the camera measures about the state: the catalog of train/observe (torch-free); auto: chosen from the
 # equation and the frames
 OBSERVE_CHOICES = CHOICES
-LIGHT_CHOICES = ("srgb", "linear")  # how the brightness observation reads pixel values (train/observe/light.py)
+# how the brightness observation reads pixel values (train/observe/light.py); auto: the curve that makes the change one pattern
+LIGHT_CHOICES = ("auto", "srgb", "linear")
 INTEGRATOR_NAMES = ("rk4", "symplectic", "euler")
 INTEGRATOR_ALIASES = {"paper": "symplectic", "semi-implicit": "symplectic", "semi_implicit": "symplectic",
                       "explicit-euler": "euler"}
@@ -40,7 +41,8 @@ class TrainConfig:
     first-order linear equation (a free encoder could report any power of its state, which
     decays at any rate) and mlp (the paper's) otherwise, or what the observation model reads
     with. light: how the brightness observation reads pixel values, "srgb" (decoded to linear
-    light, as video stores them) or "linear" (already proportional to light). gauge: learn the scale and
+    light, as phone video stores them), "linear" (already proportional to light) or "auto" (whichever
+    makes the change one pattern; sRGB, with a caution on the verdict, where the frames cannot tell). gauge: learn the scale and
     offset between latent and physical state where the equation needs them (off: the paper's
     latent = state). tol, patience, settle_factor: the stopping rule (train/stopping.py).
     horizon_warmup: steps over which the rollout grows to the whole window. selection_factor:
@@ -65,7 +67,7 @@ class TrainConfig:
     substeps: int = 1
     initial_state: str = "difference"
     encoder: str = "auto"
-    light: str = "srgb"
+    light: str = "auto"
     gauge: bool = True
     tol: float = 1e-3
     patience: int = 50

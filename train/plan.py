@@ -74,8 +74,9 @@ class FitPlan:
         lines = [f"training: {c.restarts} restart{'s' if c.restarts != 1 else ''}, up to {c.max_steps} steps, window "
                  f"{c.window} frames, {c.integrator} integrator, {c.device}, seed {c.seed}"]
         lines += [f"{name}: {self.choices[name].reason}" for name in ("window", "observation")]
-        if getattr(self.observation, "light", None) == "srgb":
-            lines.append("light: pixel values decoded from sRGB to linear light (--light linear if they already are)")
+        for part in getattr(self.observation, "parts", {"": self.observation}).values():
+            if getattr(part, "light_reason", None):
+                lines.append(f"light: {part.light_reason}")
         lines.append(f"encoder: {self.choices['encoder'].reason}")
         return lines
 

@@ -59,7 +59,7 @@ class _Scene:
 
 def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: float | None = None,
           fps: float = 60.0, size: tuple[int, int] = (270, 480), noise: float = 1.0,
-          blur: float = 0.7, jpeg_quality: int = 85, ss: int = 4, **params: float) -> SynthVideo:
+          blur: float = 0.7, jpeg_quality: int = 85, ss: int = 4, curve: str = "srgb", **params: float) -> SynthVideo:
     """Render one realistic scene.
 
     setting: the dataset's varied quantity (L, k, alpha in degrees, gamma, r0 in metres; see
@@ -70,7 +70,8 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
         the motion lasts, which is also the maximum).
     size: (height, width) in pixels.
     noise: sensor-noise multiplier (1: a decent camera, 0: none). blur: optical blur sigma
-        in pixels. jpeg_quality: 1..100 (100: no compression).
+        in pixels. jpeg_quality: 1..100 (100: no compression). curve: the transfer curve the
+        camera stores, "srgb" (a phone, a webcam) or "linear" (a scientific camera, a rendering).
     params: scene-specific overrides (pendulum: zeta, theta0_deg; torricelli: h0;
         sliding_block: mu, t0; led: I0; free_fall: h0, floor).
     """
@@ -95,6 +96,8 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
         raise FitodeError(f"jpeg_quality must be between 1 and 100, got {jpeg_quality}")
     if noise < 0 or blur < 0:
         raise FitodeError("noise and blur must not be negative")
+    if curve not in ("srgb", "linear"):
+        raise FitodeError(f"unknown transfer curve '{curve}': choose srgb or linear")
     unknown = set(params) - set(info.params)
     if unknown:
         raise FitodeError(f"scene '{name}' has no parameter {', '.join(sorted(unknown))} "
@@ -107,7 +110,7 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
     n = sc.latent.shape[0]
     frames = np.empty((n, h, w, 3), np.uint8)
     vig = R.vignette(h, w, 0.22)[..., None]
-    sensor = _Sensor(np.random.default_rng([int(seed), 29]), (h, w, 3), noise, blur, int(jpeg_quality))
+    sensor = _Sensor(np.random.default_rng([int(seed), 29]), (h, w, 3), noise, blur, int(jpeg_quality), curve)
     for i in range(n):
         cv = R.Canvas(sc.background.copy(), ss)
         sc.draw(cv, i)
@@ -119,7 +122,7 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
         "generator": "scene", "name": name, "setting_name": info.setting, "setting": setting,
         "setting_unit": info.unit, "system": info.system, "seed": int(seed), "fps": float(fps), "size": [h, w],
         "duration": n * dt, "noise": noise, "blur": blur, "jpeg_quality": int(jpeg_quality),
-        "params": {k: float(v) for k, v in params.items()}, "physical": sc.physical,
+        "params": {k: float(v) for k, v in params.items()}, "physical": sc.physical, "curve": curve,
         "description": info.description,
     }
     return SynthVideo(frames=frames, dt=dt, truth=sc.truth, latent=sc.latent, equation=info.equation,
@@ -136,8 +139,9 @@ class _Sensor:
     normal, and what two frames share is shifted by a random number of pixels."""
 
     def __init__(self, rng: np.random.Generator, shape: tuple[int, ...], noise: float, blur: float,
-                 quality: int):
+                 quality: int, curve: str = "srgb"):
         self.rng, self.shape, self.noise, self.blur, self.quality = rng, shape, noise, blur, quality
+        self.encode = linear_to_srgb if curve == "srgb" else (lambda v: v.clip(0.0, 1.0))
         self.size = int(np.prod(shape))
         self.bank = rng.standard_normal(3 * self.size, dtype=np.float32) if noise > 0 else None
 
@@ -153,7 +157,7 @@ class _Sensor:
             var += np.float32((0.008 * self.noise) ** 2)
             off = int(self.rng.integers(0, 2 * self.size))
             img = img + np.sqrt(var) * self.bank[off:off + self.size].reshape(self.shape)
-        u8 = np.clip(linear_to_srgb(img) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        u8 = np.clip(self.encode(img) * 255.0 + 0.5, 0, 255).astype(np.uint8)
         return R.jpeg_roundtrip(u8, self.quality)
 
 

@@ -56,9 +56,10 @@ def phone_times(n: int, fps: float, *, jitter: float = 0.08, drops: int = 0, see
 
 
 def write_timed(frames: np.ndarray, times: np.ndarray, path: str | Path, rate: float = 30.0,
-                quality: int = 18) -> Path:
+                quality: int = 18, metadata: dict[str, str] | None = None) -> Path:
     """Write gray (T, H, W) or RGB (T, H, W, 3) frames (float in [0, 1] or uint8) to an mp4 whose
-    frame i is stamped at times[i]; rate is the nominal rate the container records."""
+    frame i is stamped at times[i]; rate is the nominal rate the container records; metadata:
+    container tags ({"com.android.capture.fps": "120.000000"} marks a phone's slow motion)."""
     import av
 
     times = np.asarray(times, np.float64)
@@ -69,7 +70,8 @@ def write_timed(frames: np.ndarray, times: np.ndarray, path: str | Path, rate: f
         u8 = np.repeat(u8[..., None], 3, axis=3)
     h, w = u8.shape[1:3]
     path = Path(path)
-    with av.open(str(path), "w") as out:
+    with av.open(str(path), "w", options={"movflags": "use_metadata_tags"}) as out:
+        out.metadata.update(metadata or {})
         stream = out.add_stream("libx264", rate=Fraction(rate).limit_denominator(100000))
         stream.width, stream.height, stream.pix_fmt = w - w % 2, h - h % 2, "yuv420p"
         stream.codec_context.time_base = TIME_BASE

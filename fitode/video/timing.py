@@ -153,7 +153,9 @@ def frame_times(frames: np.ndarray, stamps: np.ndarray | None, rate: float, *, c
                      f"{1 / step:.6g} fps: the missing frames were filled in, each a blend of the two frames "
                      "around its time")
         return FrameTimes(keep, 1 / step, grid=grid, stamps=kt, repeats=int(repeat.sum()), lines=lines)
-    grid = kt[0] + step * np.arange(int(np.floor((kt[-1] - kt[0]) / step + 1e-9)) + 1)
+    step = (kt[-1] - kt[0]) / (len(kt) - 1)  # the mean interval: as many frames as were taken, over the same span
+    real = 1.0 / step
+    grid = kt[0] + step * np.arange(len(kt))
     gaps = int(np.sum(np.diff(kt) > 1.5 * step))
     lines.append(f"variable frame rate: the timestamps stray up to {worst:.2f} of an interval from a uniform grid"
                  + (f", with {gaps} gap{'s' if gaps > 1 else ''} (dropped frames)" if gaps else "")
@@ -180,6 +182,19 @@ def slow_motion_factor(expected: float, got: float, tolerance: float = 0.15) -> 
         if abs(ratio / k**2 - 1) <= tolerance:
             return k
     return None
+
+
+def slow_motion_hint(known: dict[str, float], estimates: dict[str, float], fps: float) -> list[str]:
+    """Lines for constants the equation knows (g) that came out about k^2 too small for a common
+    slow-motion factor k: which --fps would make them right. estimates: the values in physical
+    units (calibrated, or measured in their own units) by name."""
+    lines = []
+    for name, value in estimates.items():
+        k = slow_motion_factor(known[name], value) if name in known else None
+        if k:
+            lines.append(f"hint: {name} came out {value:.4g}, about 1/{k * k} of the known {known[name]:.6g}: a clip "
+                         f"recorded at {k}x slow motion does that; if this one was, pass --fps {k * fps:.6g}")
+    return lines
 
 
 def _pattern(idx: np.ndarray) -> str:

@@ -25,14 +25,14 @@ STRONG = 0.25  # frames whose largest change is at least this share of the clip'
 LOOK_FRAMES = 256
 
 
-def named_model(name: str, light: str = "srgb") -> ObservationModel:
+def named_model(name: str, light: str = "auto") -> ObservationModel:
     """The catalog's model of this name, with its options."""
     cls = model_class(name)
     return cls(light) if issubclass(cls, BrightnessObservation) else cls()
 
 
 def resolve_observation(spec: str | Mapping[str, str] | ObservationModel | None, system,
-                        frames: torch.Tensor | None = None, light: str = "srgb", encoder: str = "auto",
+                        frames: torch.Tensor | None = None, light: str = "auto", encoder: str = "auto",
                         source: str = "as asked") -> ObservationModel:
     """The observation model a fit uses, bound to the equation's states, with its reason: an
     instance as given, a name, one name per state ({state: name} or "x=position;y=size"), or
@@ -41,6 +41,11 @@ def resolve_observation(spec: str | Mapping[str, str] | ObservationModel | None,
     other than linear was asked for). source: where a named model came from, for its reason."""
     model = _resolved(spec, system, frames, light, encoder, source)
     model.bind(system)
+    if frames is not None:
+        # the camera's curve is a choice like the model: resolved here, once, on the training frames
+        for part in getattr(model, "parts", {model.name: model}).values():
+            if isinstance(part, BrightnessObservation):
+                part.settle(frames)
     return model
 
 

@@ -1,0 +1,120 @@
+"""Frame times: repeated frames, irregular stamps, slow motion (fitode.video.timing), the reader's
+real timestamps of a generated variable-rate file, and the camera's curve told from the frames."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from fitode.synth.timing import phone_times, pulldown, write_timed
+from fitode.train.observe.light import choose_curve, linear_to_srgb
+from fitode.video import read_video
+from fitode.video.timing import (frame_times, repeated_frames, resample, slow_motion_factor,
+                                 slow_motion_hint)
+
+
+def dot_frames(times: np.ndarray, size: int = 32, period: float = 1.3, noise: float = 0.0, seed: int = 0) -> np.ndarray:
+    """A bright dot swinging left and right (turning points included), as float frames (T, 1, H, W)."""
+    x = size / 2 + 0.35 * size * np.cos(2 * np.pi * times / period)
+    xx, yy = np.meshgrid(np.arange(size), np.arange(size))
+    f = np.exp(-((xx[None] - x[:, None, None]) ** 2 + (yy[None] - size / 2) ** 2) / 4.0)
+    f = f + np.random.default_rng(seed).normal(0, noise, f.shape)
+    return np.round(np.clip(f, 0, 1) * 255)[:, None].astype(np.float32) / 255
+
+
+def test_pulldown_repeats_found_and_dropped_at_a_constant_24():
+    clean = dot_frames(np.arange(96) / 24, noise=0.01)
+    converted = pulldown(clean)  # every fifth frame repeats the fourth
+    rep = repeated_frames(converted)
+    assert np.flatnonzero(rep).tolist() == list(range(4, len(converted), 5))
+    ft = frame_times(converted, np.arange(len(converted)) / 30, 30.0)
+    assert len(ft.keep) == 96 and ft.grid is None
+    assert ft.rate == pytest.approx(24.0, rel=1e-9)
+    assert "repeated" in ft.lines[0] and "constant" in ft.lines[1]
+
+
+def test_a_swing_without_repeats_keeps_every_frame_turning_points_included():
+    frames = dot_frames(np.arange(200) / 30)
+    assert not repeated_frames(frames).any()
+    ft = frame_times(frames, np.arange(200) / 30, 30.0)
+    assert len(ft.keep) == 200 and ft.grid is None and ft.rate == 30.0 and not ft.lines
+
+
+def test_a_slow_fade_in_8_bits_has_equal_frames_that_are_no_repeats():
+    level = np.round((0.6 + 0.3 * np.exp(-np.arange(150) / 100.0)) * 255) / 255
+    frames = (level[:, None, None, None] * np.ones((1, 1, 16, 16))).astype(np.float32)
+    assert (np.diff(level) == 0).sum() > 50  # most neighbours are equal
+    assert not repeated_frames(frames).any()
+
+
+def test_stamps_off_the_nominal_rate_set_it():
+    t = np.arange(100) / 29.75
+    ft = frame_times(dot_frames(t), t, 30.0)
+    assert ft.rate == pytest.approx(29.75) and ft.grid is None and "29.75" in ft.lines[0]
+
+
+def test_a_dropped_frame_is_filled_in_on_the_grid():
+    t = np.delete(np.arange(60) / 30, 20)
+    ft = frame_times(dot_frames(t), t, 30.0)
+    assert ft.rate == pytest.approx(30.0) and len(ft.grid) == 60
+    assert np.allclose(ft.grid, np.arange(60) / 30) and "gap" in ft.lines[0]
+
+
+def test_jittered_stamps_are_resampled_onto_the_mean_rate():
+    t = phone_times(300, 30.0, jitter=0.1, drops=3, seed=2)
+    ft = frame_times(dot_frames(t), t, 30.0)
+    assert ft.grid is not None and "variable frame rate" in ft.lines[0]
+    assert ft.rate == pytest.approx(299 / t[-1], rel=2e-3)
+    assert np.allclose(np.diff(ft.grid), 1 / ft.rate)
+
+
+def test_resample_blends_the_two_frames_around_each_time():
+    frames = np.arange(4, dtype=np.float32)[:, None] * np.ones((4, 3), np.float32)
+    out = resample(frames, np.array([0.0, 1.0, 3.0, 4.0]), np.array([0.5, 2.0, 3.75]))
+    assert np.allclose(out[:, 0], [0.5, 1.5, 2.75])
+
+
+def test_slow_motion_factor_and_hint():
+    assert slow_motion_factor(9.81, 9.81 / 16) == 4
+    assert slow_motion_factor(9.81, 9.81 / 64.5) == 8
+    assert slow_motion_factor(9.81, 9.81 / 1.1) is None and slow_motion_factor(9.81, -1.0) is None
+    line, = slow_motion_hint({"g": 9.80665}, {"g": 0.61}, 29.995)
+    assert "--fps 119.98" in line
+    assert slow_motion_hint({"g": 9.80665}, {"g": 9.7}, 30.0) == []
+
+
+def test_the_reader_returns_the_real_timestamps_of_a_variable_rate_file(tmp_path):
+    t = phone_times(90, 30.0, jitter=0.12, drops=2, seed=4)
+    path = write_timed(dot_frames(t, size=32)[:, 0], t, tmp_path / "vfr.mp4", rate=30.0,
+                       metadata={"com.android.capture.fps": "120.000000"})
+    clip = read_video(path, stride=1)
+    assert clip.fps_source == "timestamps" and clip.fps == pytest.approx(89 / t[-1], rel=2e-3)
+    assert np.allclose(np.diff(clip.times), 1 / clip.fps) and clip.times[-1] == pytest.approx(t[-1], abs=1e-4)
+    assert any("variable frame rate" in line for line in clip.describe())
+    assert clip.capture_fps == 120.0 and any("--fps 120" in line for line in clip.describe())
+    given = read_video(path, stride=1, fps=120.0)  # --fps wins, the stamps' pattern is kept
+    assert given.fps == pytest.approx(120.0, rel=2e-3) and given.slow_motion_fps() is None
+
+
+def lamp(curve: str, pattern: str = "glow", n: int = 120, seed: int = 0) -> torch.Tensor:
+    """A lamp dimming (I = exp(-t)) over a background, stored as linear light or sRGB-encoded, 8 bits."""
+    yy, xx = np.mgrid[0:24, 0:24]
+    glow = np.exp(-((xx - 12) ** 2 + (yy - 12) ** 2) / 40.0) if pattern == "glow" else np.full((24, 24), 0.5)
+    base = 0.1 + 0.1 * xx / 24 if pattern == "glow" else np.zeros((24, 24))
+    light = base[None] + 0.8 * glow[None] * np.exp(-np.linspace(0, 3, n))[:, None, None]
+    light = light + np.random.default_rng(seed).normal(0, 0.002, light.shape)
+    stored = light if curve == "linear" else linear_to_srgb(np.clip(light, 0, 1))
+    return torch.as_tensor(np.round(np.clip(stored, 0, 1) * 255) / 255, dtype=torch.float32)[:, None]
+
+
+def test_the_curve_is_told_where_the_change_is_one_pattern_only_through_it():
+    linear = choose_curve(lamp("linear"))
+    assert linear.light == "linear" and linear.told and linear.caution is None
+    srgb = choose_curve(lamp("srgb"))
+    assert srgb.light == "srgb" and srgb.told
+    assert srgb.separation["srgb"] < srgb.separation["linear"]
+
+
+def test_a_uniform_patch_cannot_tell_the_curve():
+    flat = choose_curve(lamp("linear", pattern="flat"))
+    assert flat.light == "srgb" and not flat.told and "cannot tell" in flat.caution
