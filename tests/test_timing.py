@@ -60,12 +60,23 @@ def test_a_dropped_frame_is_filled_in_on_the_grid():
     assert np.allclose(ft.grid, np.arange(60) / 30) and "gap" in ft.lines[0]
 
 
-def test_jittered_stamps_are_resampled_onto_the_mean_rate():
+def test_jittered_stamps_with_drops_keep_each_frame_on_its_grid_point():
     t = phone_times(300, 30.0, jitter=0.1, drops=3, seed=2)
+    frames = dot_frames(t)
+    ft = frame_times(frames, t, 30.0)
+    assert ft.rate == pytest.approx(30.0, rel=2e-3) and len(ft.grid) == 303
+    assert "jitter" in ft.lines[0] and "3 dropped frames" in ft.lines[1]
+    out = resample(frames[ft.keep], ft.stamps, ft.grid)
+    kept = np.searchsorted(ft.grid, ft.stamps)  # every frame sits unblended on its own grid point
+    assert np.allclose(ft.grid[kept], ft.stamps) and np.abs(ft.stamps - t).max() < 0.45 / 30
+    assert np.array_equal(out[kept], frames)
+
+
+def test_stamps_that_follow_no_constant_rate_are_resampled_at_the_mean_rate():
+    t = np.cumsum(np.r_[0, np.where(np.arange(99) < 50, 1 / 30, 1 / 24)])  # 30 fps, then 24
     ft = frame_times(dot_frames(t), t, 30.0)
     assert ft.grid is not None and "variable frame rate" in ft.lines[0]
-    assert ft.rate == pytest.approx(299 / t[-1], rel=2e-3)
-    assert np.allclose(np.diff(ft.grid), 1 / ft.rate)
+    assert ft.rate == pytest.approx(99 / t[-1]) and np.allclose(np.diff(ft.grid), 1 / ft.rate)
 
 
 def test_resample_blends_the_two_frames_around_each_time():
@@ -88,9 +99,10 @@ def test_the_reader_returns_the_real_timestamps_of_a_variable_rate_file(tmp_path
     path = write_timed(dot_frames(t, size=32)[:, 0], t, tmp_path / "vfr.mp4", rate=30.0,
                        metadata={"com.android.capture.fps": "120.000000"})
     clip = read_video(path, stride=1)
-    assert clip.fps_source == "timestamps" and clip.fps == pytest.approx(89 / t[-1], rel=2e-3)
-    assert np.allclose(np.diff(clip.times), 1 / clip.fps) and clip.times[-1] == pytest.approx(t[-1], abs=1e-4)
-    assert any("variable frame rate" in line for line in clip.describe())
+    assert clip.fps_source == "timestamps" and clip.fps == pytest.approx(30.0, rel=3e-3)
+    assert len(clip.frames) == 92  # 90 frames and the 2 dropped ones filled in
+    assert np.allclose(np.diff(clip.times), 1 / clip.fps) and clip.times[-1] == pytest.approx(t[-1], abs=4e-3)
+    assert any("jitter" in line for line in clip.describe()) and any("2 dropped" in line for line in clip.describe())
     assert clip.capture_fps == 120.0 and any("--fps 120" in line for line in clip.describe())
     given = read_video(path, stride=1, fps=120.0)  # --fps wins, the stamps' pattern is kept
     assert given.fps == pytest.approx(120.0, rel=2e-3) and given.slow_motion_fps() is None

@@ -13,7 +13,7 @@ from fitode.video.mask import Mask
 from fitode.video.preprocess import Preprocess, check_roi_inside, default_size
 from fitode.video.sources import (ArraySource, Source, container_fps_problem, open_source,
                                   source_sha256)
-from fitode.video.timing import FrameTimes, frame_times, resample, uniform_fit
+from fitode.video.timing import FrameTimes, frame_times, resample
 
 
 def read_video(path: str | Path, *, fps: float | None = None, start: float | None = None,
@@ -221,18 +221,18 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
 
 def _frame_times(frames: np.ndarray, stamps: list, fps: float, fps_source: str,
                  explicit: int | None) -> FrameTimes:
-    """The timestamps checked (fitode.video.timing); a user's --fps rescales them to its rate."""
+    """The timestamps checked (fitode.video.timing). A user's --fps is the capture rate: the stamps
+    keep their pattern (repeats, holes, jitter) and are rescaled to it (slow motion)."""
     if len(stamps) < 3 or any(t is None for t in stamps):
         return FrameTimes(np.arange(len(frames)), fps)
-    t = np.asarray(stamps, np.float64)
     step = explicit or 1
-    scale = 1.0
+    timing = frame_times(frames, np.asarray(stamps, np.float64), fps / step, consecutive=step == 1)
     if fps_source == "user":
-        _, interval, _ = uniform_fit(t)
-        if not interval > 0:
-            return FrameTimes(np.arange(len(frames)), fps)
-        scale = (step / interval) / fps  # the stamps' own rate over the one given
-    timing = frame_times(frames, t, fps / step, consecutive=step == 1, scale=scale)
+        scale = timing.rate * step / fps  # the stamps' own capture rate over the one given
+        timing.rate = fps / step
+        timing.grid = None if timing.grid is None else timing.grid * scale
+        timing.stamps = None if timing.stamps is None else timing.stamps * scale
+        timing.lines = [line for line in timing.lines if not line.startswith("the timestamps run at")]
     timing.rate *= step  # frame_times saw every step-th frame
     return timing
 

@@ -9,12 +9,18 @@ A container's nominal frame rate is a promise the file does not always keep:
 
 `frame_times` reads the timestamps of the frames read and returns what the fit should use.
 The fit itself runs on a uniform grid (windows, rollouts and trajectories all take one dt), so
-irregular real times are met here, once: the kept frames are resampled (linear blend of the two
-frames around each grid time) onto a uniform grid at the real mean rate. Frames repeated by a
-rate conversion are dropped with their times; what remains came from a constant-rate source,
-whose true times are a uniform grid (the converted file's stamps are the output grid's, up to
-half an output interval off the capture), so the remaining frames are kept as they are, at
-their own mean rate.
+real times are met here, once, and the fit gets a uniform grid at the real rate:
+- stamps at a constant rate other than the nominal one: that rate;
+- stamps that jitter around a constant capture rate, with holes where frames were dropped (a
+  phone): each frame on its nearest grid point (the jitter, random, is left), each hole filled
+  with a blend of the two frames around it. Frames are not blended onto the grid wholesale: a
+  blend of a moving thing is two faint copies, which a learned encoder does not read as the
+  position midway (a damping rate came out 15% low that way);
+- frames repeated by a rate conversion are dropped with their times; what remains came from a
+  constant-rate source whose true times are a uniform grid (the converted file's stamps are the
+  output grid's, up to half an output interval off the capture), at 24 of every 30;
+- stamps that follow no constant rate: every frame resampled onto a uniform grid at the real
+  mean rate, each a blend of the two frames around its time.
 """
 from __future__ import annotations
 
@@ -30,6 +36,7 @@ MOVING = 3.0            # ... and only where that typical difference stands this
 MIN_CHANGE = 4 / 255    # ... and above a few levels of 8-bit video: a slow fade changes a level every few
 #                         frames, and the frames between are equal without being repeats
 IRREGULAR = 0.05        # timestamps farther than this share of an interval from a uniform grid are irregular
+SLOT_SLACK = 0.45       # ... and up to this far, each still belongs to one point of a grid at a constant rate
 CONVERSION_SLACK = 0.5  # after a rate conversion, stamps may sit up to half an interval off the capture
 CONVERSION_REPEATS = 3  # fewer repeats than this are no rate conversion (a still pair at a turning point
 #                         looks like one): their times are kept and the rest resampled where irregular
@@ -104,19 +111,16 @@ def uniform_fit(stamps: np.ndarray) -> tuple[float, float, float]:
     return float(start), float(step), worst
 
 
-def frame_times(frames: np.ndarray, stamps: np.ndarray | None, rate: float, *, consecutive: bool = True,
-                scale: float = 1.0) -> FrameTimes:
+def frame_times(frames: np.ndarray, stamps: np.ndarray | None, rate: float, *, consecutive: bool = True) -> FrameTimes:
     """What the fit should use of `frames` (T, ...) read at `stamps` (seconds, None: the source
     has none, a folder or an array), given the nominal `rate`.
 
-    consecutive: the frames are every frame of the source range (repeats can only be told then).
-    scale: factor from the stamps' seconds to real seconds (a user's --fps over the stamps' own
-    rate: slow motion)."""
+    consecutive: the frames are every frame of the source range (repeats can only be told then)."""
     n = len(frames)
     everything = np.arange(n)
     if stamps is None or n < 3:
         return FrameTimes(everything, rate)
-    t = np.asarray(stamps, np.float64) * scale
+    t = np.asarray(stamps, np.float64)
     if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
         return FrameTimes(everything, rate, lines=["the container's timestamps do not increase: the nominal rate is "
                                                    "used"])
@@ -142,25 +146,40 @@ def frame_times(frames: np.ndarray, stamps: np.ndarray | None, rate: float, *, c
             return FrameTimes(keep, rate, stamps=kt, repeats=int(repeat.sum()), lines=lines)
         lines.append(f"the timestamps run at {real:.6g} fps, not the nominal {rate:.6g}: {real:.6g} is used")
         return FrameTimes(keep, real, stamps=kt, repeats=int(repeat.sum()), lines=lines)
-    slots = np.diff(kt) / np.median(np.diff(kt))
-    if np.all(np.abs(slots - np.rint(slots)) <= IRREGULAR) and np.all(np.rint(slots) >= 1):
-        # a constant rate with holes (dropped frames): the grid runs through every stamp and fills the holes
-        n_slots = int(np.rint(slots).sum())
-        step = (kt[-1] - kt[0]) / n_slots
-        grid = kt[0] + step * np.arange(n_slots + 1)
-        gaps = int(np.sum(np.rint(slots) > 1))
-        lines.append(f"{gaps} gap{'s' if gaps > 1 else ''} in the timestamps (dropped frames) at a constant "
-                     f"{1 / step:.6g} fps: the missing frames were filled in, each a blend of the two frames "
-                     "around its time")
-        return FrameTimes(keep, 1 / step, grid=grid, stamps=kt, repeats=int(repeat.sum()), lines=lines)
+    # each interval in whole capture intervals (1, or 2 across a dropped frame), then the grid fitted to them
+    slots = np.r_[0.0, np.cumsum(np.maximum(1.0, np.rint(np.diff(kt) / np.median(np.diff(kt)))))]
+    if len(kt) >= 3:
+        # a constant capture rate with jitter and holes (a phone): each frame on its nearest grid point,
+        # the holes (dropped frames) filled in. Frames are not blended onto the grid: a blend of a moving
+        # thing is two faint copies, which a learned encoder does not read as the midway position.
+        step, start = np.polyfit(slots, kt, 1)
+        slots = np.rint((kt - start) / step)  # again, from the fitted grid rather than from each neighbour
+        slots -= slots[0]
+        step, start = np.polyfit(slots, kt, 1)
+        snapped = start + step * slots
+        off = (kt - snapped) / step
+        if np.abs(off).max() <= SLOT_SLACK and np.all(np.diff(slots) >= 1):
+            n_slots = int(slots[-1]) + 1
+            grid = start + step * np.arange(n_slots)
+            gaps = int(np.sum(np.diff(slots) > 1))
+            if np.abs(off).max() > IRREGULAR:
+                lines.append(f"the timestamps jitter around a constant {1 / step:.6g} fps (rms {np.sqrt(np.mean(off ** 2)):.2f}, "
+                             f"at most {np.abs(off).max():.2f} of an interval): each frame is kept on its nearest point of "
+                             "that grid")
+            elif abs(step * rate - 1) > 1e-4:
+                lines.append(f"the timestamps run at {1 / step:.6g} fps, not the nominal {rate:.6g}: {1 / step:.6g} is used")
+            if gaps:
+                lines.append(f"{gaps} gap{'s' if gaps > 1 else ''} in the timestamps ({n_slots - len(kt)} dropped "
+                             f"frame{'s' if n_slots - len(kt) > 1 else ''}): each missing frame filled in as a blend of "
+                             "the two around it")
+            return FrameTimes(keep, 1 / step, grid=grid if gaps else None, stamps=snapped if gaps else kt,
+                              repeats=int(repeat.sum()), lines=lines)
     step = (kt[-1] - kt[0]) / (len(kt) - 1)  # the mean interval: as many frames as were taken, over the same span
     real = 1.0 / step
     grid = kt[0] + step * np.arange(len(kt))
-    gaps = int(np.sum(np.diff(kt) > 1.5 * step))
-    lines.append(f"variable frame rate: the timestamps stray up to {worst:.2f} of an interval from a uniform grid"
-                 + (f", with {gaps} gap{'s' if gaps > 1 else ''} (dropped frames)" if gaps else "")
-                 + f"; the frames were resampled onto a uniform grid at the real mean rate, {real:.6g} fps "
-                 "(each a blend of the two frames around its time)")
+    lines.append(f"variable frame rate: the timestamps stray up to {worst:.2f} of an interval from a uniform grid; "
+                 f"the frames were resampled onto a uniform grid at the real mean rate, {real:.6g} fps (each a blend "
+                 "of the two frames around its time)")
     return FrameTimes(keep, real, grid=grid, stamps=kt, repeats=int(repeat.sum()), lines=lines)
 
 
