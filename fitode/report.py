@@ -148,6 +148,8 @@ def base_report(video, clip, ode, spec, analysis, plan, train_fraction: float, f
             "duration_s": (n - 1) * float(clip.dt),
             "first_frame_time_s": t0,
             "fps_container": clip.fps_container,
+            "timing": list(clip.timing),  # what the frames' timestamps changed (fitode.video.timing)
+            "capture_fps": clip.capture_fps,  # a slow-motion clip's recorded rate, from its metadata
             "source_size": _plain(clip.source_size),
             "n_source_frames": clip.n_source_frames,
             "notes": list(clip.notes),

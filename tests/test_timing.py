@@ -130,3 +130,54 @@ def test_the_curve_is_told_where_the_change_is_one_pattern_only_through_it():
 def test_a_uniform_patch_cannot_tell_the_curve():
     flat = choose_curve(lamp("linear", pattern="flat"))
     assert flat.light == "srgb" and not flat.told and "cannot tell" in flat.caution
+
+
+def oscillator(size: int = 32, seconds: float = 8.0):
+    from fitode.synth import render_equation
+    return render_equation("z'' = -k*z - c*z'", constants={"k": 16.0, "c": 0.3}, y0={"z": 1.0},
+                           n_frames=int(seconds * 600) + 1, dt=1 / 600, mode="motion", size=size)
+
+
+def test_a_pulldown_file_reads_as_its_24_fps_original(tmp_path):
+    from fitode.synth.timing import sample_at
+    fine = oscillator(seconds=4.0)
+    t24 = np.arange(96) / 24
+    clean = read_video(write_timed(sample_at(fine, t24), t24, tmp_path / "clean24.mp4", 24.0), stride=1)
+    converted = pulldown(sample_at(fine, t24))
+    pd = read_video(write_timed(converted, np.arange(len(converted)) / 30, tmp_path / "pd.mp4", 30.0), stride=1)
+    assert pd.fps == pytest.approx(24.0) and pd.dt == pytest.approx(clean.dt) and len(pd.frames) == len(clean.frames)
+    same = np.abs(pd.frames - clean.frames).mean()
+    shifted = np.abs(pd.frames[1:] - clean.frames[:-1]).mean()
+    assert same < 0.2 * shifted  # the same pictures, up to the codec
+
+
+@pytest.mark.slow
+def test_pulldown_and_phone_clips_fit_like_their_clean_versions(tmp_path):
+    import fitode
+    from fitode.synth.timing import sample_at
+    fine = oscillator(seconds=8.0)
+    t24, t30 = np.arange(192) / 24, np.arange(240) / 30
+    tv = phone_times(237, 30.0, jitter=0.08, drops=3, seed=1)
+    clips = {"clean24": write_timed(sample_at(fine, t24), t24, tmp_path / "c24.mp4", 24.0),
+             "pulldown": write_timed(pulldown(sample_at(fine, t24)), t30, tmp_path / "pd.mp4", 30.0),
+             "clean30": write_timed(sample_at(fine, t30), t30, tmp_path / "c30.mp4", 30.0),
+             "phone": write_timed(sample_at(fine, tv), tv, tmp_path / "vfr.mp4", 30.0)}
+    k = {name: fitode.fit(str(p), eq="z'' = -k*z - c*z'", restarts=2, stride=1, progress=False).parameters["k"].value
+         for name, p in clips.items()}
+    assert k["pulldown"] == pytest.approx(k["clean24"], rel=0.01)
+    assert k["phone"] == pytest.approx(k["clean30"], rel=0.01)
+
+
+@pytest.mark.slow
+def test_a_linear_lamp_is_read_as_linear_and_an_untold_curve_is_not_trusted(tmp_path):
+    import fitode
+    from fitode.synth import scene, write_video
+    linear = fitode.fit(str(write_video(scene("led", seed=0, size=(135, 240), curve="linear"), tmp_path / "lin.mp4")),
+                        eq="I' = -gamma*I", restarts=2, progress=False)
+    assert "linear" in linear.meta["subspace"]  # read as linear light
+    srgb = fitode.fit(str(write_video(scene("led", seed=0, size=(135, 240)), tmp_path / "srgb.mp4")),
+                      eq="I' = -gamma*I", restarts=2, progress=False)
+    assert "decoded from sRGB" in srgb.meta["subspace"]
+    if "cannot tell" in " ".join(str(f) for f in srgb.checks.get("findings", [])):
+        assert srgb.verdicts["gamma"]["verdict"] != "trusted"
+    assert srgb.parameters["gamma"].value == pytest.approx(linear.parameters["gamma"].value, rel=0.05)
