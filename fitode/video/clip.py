@@ -40,13 +40,14 @@ class Clip:
     frame_times: np.ndarray | None = None  # real time of every kept frame (s), from the container's stamps
     timing: list[str] = field(default_factory=list)  # what the stamps changed (fitode.video.timing), one line each
     capture_fps: float | None = None  # the capture rate a slow-motion clip's metadata records
+    source_index: np.ndarray | None = None  # source frame of every kept frame, where repeats were dropped or holes filled
 
     @property
     def frame_indices(self) -> np.ndarray:
-        """Source frame index of every kept frame (where repeats were dropped or the frames
-        resampled, the nearest index at the clip's rate)."""
-        if self.frame_times is not None and self.timing:
-            return np.rint(self.times * self.fps).astype(np.int64)
+        """Source frame index of every kept frame (a frame filled in where the source dropped one:
+        the source frame nearest its time)."""
+        if self.source_index is not None:
+            return np.asarray(self.source_index, np.int64)
         return self.start_frame + self.stride * np.arange(len(self.frames))
 
     @property

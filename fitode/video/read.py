@@ -175,12 +175,16 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
     assert buf is not None and hw is not None
 
     timing = _frame_times(buf[:kept], stamps, fps_used, fps_source, explicit)
+    source = first + (explicit or 1) * np.arange(kept)  # the source index of every buffered frame
     if timing.grid is not None:
         assert timing.stamps is not None
+        near = np.abs(timing.grid[:, None] - timing.stamps[None, :]).argmin(axis=1)
+        source = source[timing.keep][near]  # a filled-in frame: the source frame nearest its time
         buf, kept = resample(buf[timing.keep], timing.stamps, timing.grid), len(timing.grid)
         times = timing.grid
     elif len(timing.keep) < kept:
         buf, kept = buf[timing.keep], len(timing.keep)
+        source = source[timing.keep]
         times = timing.stamps
     else:
         times = timing.stamps
@@ -209,14 +213,16 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
         notes.append(src.note)
     if the_mask is not None and the_mask.note:
         notes.append(the_mask.note)
-    kept_times = None if times is None else np.asarray(times[:kept:k] if explicit is None and k > 1 else times[:kept])
+    every = slice(0, kept, k if explicit is None else 1)
+    kept_times = None if times is None else np.asarray(times[every])
     return Clip(frames=frames, fps=fps_used, fps_source=fps_source, stride=k, dt=k / fps_used,
                 stride_reason=reason, path=str(p), sha256=sha, source_size=hw,
                 n_source_frames=n_source, start_frame=first,
                 end_frame=decoded if stop is None else stop, kind=src.kind,
                 fps_container=src.container_fps, roi=roi, color=color,
                 mask=None if mask_path is None else str(mask_path), notes=notes,
-                frame_times=kept_times, timing=timing.lines, capture_fps=src.capture_fps)
+                frame_times=kept_times, timing=timing.lines, capture_fps=src.capture_fps,
+                source_index=source[every] if timing.lines else None)
 
 
 def _frame_times(frames: np.ndarray, stamps: list, fps: float, fps_source: str,

@@ -140,7 +140,7 @@ def frame_times(frames: np.ndarray, stamps: np.ndarray | None, rate: float, *, c
             real = len(keep) / (n * uniform_fit(t)[1])
             lines.append(f"the remaining {len(keep)} frames were taken at a constant {real:.6g} fps (a rate "
                          "conversion's stamps are its output grid, not the capture times)")
-            return FrameTimes(keep, real, stamps=kt, repeats=k, lines=lines)
+            return FrameTimes(keep, real, stamps=kt[0] + np.arange(len(keep)) / real, repeats=k, lines=lines)
     if worst <= IRREGULAR:
         if abs(real / rate - 1) <= 1e-4:
             return FrameTimes(keep, rate, stamps=kt, repeats=int(repeat.sum()), lines=lines)
@@ -158,6 +158,8 @@ def frame_times(frames: np.ndarray, stamps: np.ndarray | None, rate: float, *, c
         step, start = np.polyfit(slots, kt, 1)
         snapped = start + step * slots
         off = (kt - snapped) / step
+        start = kt[0]  # the grid through the first frame's own time: only differences matter to the fit
+        snapped = start + step * slots
         if np.abs(off).max() <= SLOT_SLACK and np.all(np.diff(slots) >= 1):
             n_slots = int(slots[-1]) + 1
             grid = start + step * np.arange(n_slots)
