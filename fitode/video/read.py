@@ -178,7 +178,8 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
     source = first + (explicit or 1) * np.arange(kept)  # the source index of every buffered frame
     if timing.grid is not None:
         assert timing.stamps is not None
-        near = np.abs(timing.grid[:, None] - timing.stamps[None, :]).argmin(axis=1)
+        right = np.clip(np.searchsorted(timing.stamps, timing.grid), 1, len(timing.stamps) - 1)
+        near = right - (timing.grid - timing.stamps[right - 1] < timing.stamps[right] - timing.grid)
         source = source[timing.keep][near]  # a filled-in frame: the source frame nearest its time
         buf, kept = resample(buf[timing.keep], timing.stamps, timing.grid), len(timing.grid)
         times = timing.grid
