@@ -86,13 +86,14 @@ def request(*, eq: str | None = None, system: str | OdeSystem | None = None, eq_
                       calibration=points, spec=spec)
 
 
-def plan(req: FitRequest, frames: torch.Tensor, dt: float) -> FitPlan:
-    """Every choice of the fit resolved on its frames (float (T, C, H, W), as_frames)."""
+def plan(req: FitRequest, frames: torch.Tensor, dt: float, track=None) -> FitPlan:
+    """Every choice of the fit resolved on its frames (float (T, C, H, W), as_frames) and the
+    reader's track of them (fitode.train.observe.track.Track, or None)."""
     if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not (dt > 0 and np.isfinite(dt)):
         raise ConfigError(f"dt must be a positive number of seconds, got {dt!r}")
     n_train = max(int(round(req.train_fraction * frames.shape[0])), 1)
     return make_plan(req.system, req.params, frames, float(dt), req.config, observe=req.observe, n_train=n_train,
-                     init=req.init, observe_source=req.observe_source)
+                     init=req.init, observe_source=req.observe_source, track=track)
 
 
 def execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_offset: float = 0.0,

@@ -73,7 +73,7 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | None = None, system: 
     x = api.as_frames(frames)
     from fitode.pipeline import rate_std
     rate = rate_std(fps) if clip is not None else 0.0  # an array's dt is the user's
-    result = api.execute(req, api.plan(req, x, dt), x, time_offset=time_offset, callback=callback,
+    result = api.execute(req, api.plan(req, x, dt, track=None if clip is None else clip.track), x, time_offset=time_offset, callback=callback,
                          progress=progress, rate_std=rate)
     if clip is not None:  # what was measured, in the video's pixels as `fitode VIDEO` writes it
         from fitode.pipeline import source_measurement

@@ -95,7 +95,7 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
 
     clip, t0 = read_clip(video, read, req.calibration, progress=progress)
     frames = api.as_frames(clip.frames)
-    plan = api.plan(req, frames, clip.dt)
+    plan = api.plan(req, frames, clip.dt, track=clip.track)
     for line in rep.understanding_lines(ode, spec, analysis, clip, plan):
         say(line)
 

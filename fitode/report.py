@@ -108,7 +108,7 @@ def understanding_lines(ode, spec, analysis, clip, plan) -> list[str]:
         lines += [f"  {line}" for line in analysis["lines"]]
     if plan.config.gauge:
         from fitode.describe import gauge_lines
-        lines += gauge_lines(ode)
+        lines += gauge_lines(ode, plan.observation)
     return lines + plan.lines()
 
 

@@ -83,14 +83,18 @@ class FitPlan:
 
 def make_plan(system: OdeSystem, params: Mapping[str, ParamSpec], frames: torch.Tensor, dt: float,
               config: TrainConfig, *, observe: str | ObservationModel | None = None, n_train: int | None = None,
-              init: Mapping[str, float] | None = None, observe_source: str = "as asked") -> FitPlan:
+              init: Mapping[str, float] | None = None, observe_source: str = "as asked", track=None) -> FitPlan:
     """Resolve every choice of a fit on its frames (T, C, H, W): the observation model (auto looks
     at the training frames), the encoder it reads with, and the training window.
-    observe_source: where a named model came from ("as asked", "from the equation file")."""
+    observe_source: where a named model came from ("as asked", "from the equation file").
+    track: the reader's track of the frames (observe.track.Track), which the models that measure
+    a place read; None: they measure the frames."""
     n_frames = int(frames.shape[0])
     n_train = n_frames if n_train is None else int(n_train)
+    if track is not None and len(track) != n_frames:
+        track = None  # frames cut or subsampled after reading: the track is not theirs
     observation = resolve_observation(observe, system, frames[:n_train], config.light, config.encoder,
-                                      source=observe_source)
+                                      source=observe_source, track=track, n_train=n_train)
     config, encoder_reason = resolve_encoder(config, system, observation)
     config, window_reason = resolve_window(config, frames[:n_train], dt)
     if n_train < config.window + 1:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -41,6 +42,9 @@ class Clip:
     timing: list[str] = field(default_factory=list)  # what the stamps changed (fitode.video.timing), one line each
     capture_fps: float | None = None  # the capture rate a slow-motion clip's metadata records
     source_index: np.ndarray | None = None  # source frame of every kept frame, where repeats were dropped or holes filled
+    # where the moving object is in every kept frame, measured before the frames were shrunk
+    # (fitode.video.track; a fitode.train.observe.track.Track), or None
+    track: Any = None
 
     @property
     def frame_indices(self) -> np.ndarray:

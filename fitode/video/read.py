@@ -14,6 +14,7 @@ from fitode.video.preprocess import Preprocess, check_roi_inside, default_size
 from fitode.video.sources import (ArraySource, Source, container_fps_problem, open_source,
                                   source_sha256)
 from fitode.video.timing import FrameTimes, frame_times, resample
+from fitode.video.track import TrackRecorder
 
 
 def read_video(path: str | Path, *, fps: float | None = None, start: float | None = None,
@@ -118,6 +119,7 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
     hw: tuple[int, int] | None = None
     prep: Preprocess | None = None
     the_mask: Mask | None = None
+    tracker: TrackRecorder | None = None
 
     hint = src.count_hint
     todo = hint if stop is None else (stop if hint is None else min(stop, hint))
@@ -139,6 +141,8 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
                     check_roi_inside(crop, hw)
                     out_hw = size or default_size(crop[3], crop[2], short_side)
                     prep = Preprocess(crop, out_hw, color, src.order)
+                    tracker = TrackRecorder(prep.box, todo if todo is None else (todo - first) // (explicit or 1) + 1,
+                                            src.order)
                     if mask_path is not None:
                         the_mask = Mask(mask_path, hw, prep.box)
                         the_mask.grab()  # catch up with frame 0
@@ -147,8 +151,10 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
                                      f"(WxH), unlike the first frame's {hw[1]}x{hw[0]}")
                 if use:
                     assert prep is not None
-                    small = prep(frame, src.unit(frame),
-                                 the_mask.current() if the_mask is not None else None)
+                    cut = the_mask.current() if the_mask is not None else None
+                    small = prep(frame, src.unit(frame), cut)
+                    assert tracker is not None
+                    tracker.add(frame, src.unit(frame), cut)
                     if buf is None or kept == buf.shape[0]:
                         buf = _grow(buf, kept, small.shape, todo, first, explicit)
                     buf[kept] = small
@@ -215,6 +221,9 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
     if the_mask is not None and the_mask.note:
         notes.append(the_mask.note)
     every = slice(0, kept, k if explicit is None else 1)
+    assert tracker is not None
+    # the collected frame behind every kept one (repeats dropped, a filled-in frame its nearest)
+    track = tracker.finish(((source - first) // (explicit or 1))[every])
     kept_times = None if times is None else np.asarray(times[every])
     return Clip(frames=frames, fps=fps_used, fps_source=fps_source, stride=k, dt=k / fps_used,
                 stride_reason=reason, path=str(p), sha256=sha, source_size=hw,
@@ -223,7 +232,7 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
                 fps_container=src.container_fps, roi=roi, color=color,
                 mask=None if mask_path is None else str(mask_path), notes=notes,
                 frame_times=kept_times, timing=timing.lines, capture_fps=src.capture_fps,
-                source_index=source[every] if timing.lines else None)
+                source_index=source[every] if timing.lines else None, track=track)
 
 
 def _frame_times(frames: np.ndarray, stamps: list, fps: float, fps_source: str,

@@ -14,10 +14,11 @@ from .catalog import AUTO, CHOICES, MODELS, auto_rule, format_observe, model_cla
 
 _WHERE = {
     "ObservationModel": "base", "MeasuredObservation": "base", "Prepared": "base", "CHECKS": "base",
-    "BrightnessObservation": "brightness", "PositionObservation": "position",
+    "BrightnessObservation": "brightness", "PositionObservation": "position", "AngleObservation": "angle",
+    "fit_circle": "circle", "Circle": "circle", "Track": "track",
     "SizeObservation": "size", "DistanceObservation": "size", "PerStateObservation": "per_state",
     "resolve_observation": "auto", "named_model": "auto", "look": "auto", "Look": "auto",
-    "centroids": "tracking", "mend_one_way": "tracking", "line_of_motion": "tracking", "one_way": "tracking",
+    "centroids": "tracking", "mend_one_way": "tracking", "mend_strays": "tracking", "mend": "tracking", "line_of_motion": "tracking", "one_way": "tracking",
     "noise_level": "tracking", "ONE_WAY": "tracking",
     "apparent_radii": "extent", "signal_subspace": "subspace", "SUBSPACE_JUMP": "subspace",
     "srgb_to_linear": "light", "linear_to_srgb": "light",

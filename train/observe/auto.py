@@ -14,15 +14,23 @@ from typing import Mapping
 
 import torch
 
+from .angle import AngleObservation
 from .base import ObservationModel
 from .brightness import BrightnessObservation
 from .catalog import AUTO, model_class, parse_observe
+from .circle import Circle, fit_circle
 from .position import PositionObservation
 from .subspace import SUBSPACE_JUMP
+from .track import Track
 from .tracking import ONE_WAY, centroids, line_of_motion, noise_level, one_way
 
 STRONG = 0.25  # frames whose largest change is at least this share of the clip's largest
 LOOK_FRAMES = 256
+# a back-and-forth path swings about a centre where its arc bows SWING times the uncertainty of
+# that bow (circle.Circle.significance) and it runs along the arc, its scatter across it under
+# THIN of the arc's length (a spring that bounces while it swings fills an area)
+SWING = 8.0
+THIN = 0.05
 
 
 def named_model(name: str, light: str = "auto") -> ObservationModel:
@@ -33,14 +41,21 @@ def named_model(name: str, light: str = "auto") -> ObservationModel:
 
 def resolve_observation(spec: str | Mapping[str, str] | ObservationModel | None, system,
                         frames: torch.Tensor | None = None, light: str = "auto", encoder: str = "auto",
-                        source: str = "as asked") -> ObservationModel:
-    """The observation model a fit uses, bound to the equation's states, with its reason: an
-    instance as given, a name, one name per state ({state: name} or "x=position;y=size"), or
-    "auto" (None): position where the change moves one way, brightness for a single first-order
-    linear equation whose frames brighten or dim as one, any otherwise (and wherever an encoder
-    other than linear was asked for). source: where a named model came from, for its reason."""
-    model = _resolved(spec, system, frames, light, encoder, source)
+                        source: str = "as asked", track: Track | None = None,
+                        n_train: int | None = None) -> ObservationModel:
+    """The observation model a fit uses, bound to the equation's states and given the reader's
+    track, with its reason: an instance as given, a name, one name per state ({state: name} or
+    "x=position;y=size"), or "auto" (None): position where the change moves one way, angle where
+    a single state's change swings back and forth about a centre, brightness for a single
+    first-order linear equation whose frames brighten or dim as one, any otherwise (and wherever
+    an encoder other than linear was asked for). source: where a named model came from, for its
+    reason. track: the reader's track of every frame the fit will use (the auto choice looks at
+    its first n_train), None where there is none."""
+    model = _resolved(spec, system, frames, light, encoder, source,
+                      None if track is None else track.head(len(track) if n_train is None else n_train))
     model.bind(system)
+    if track is not None:
+        model.use_track(track)
     if frames is not None:
         # the camera's curve is a choice like the model: resolved here, once, on the training frames
         for part in getattr(model, "parts", {model.name: model}).values():
@@ -49,7 +64,7 @@ def resolve_observation(spec: str | Mapping[str, str] | ObservationModel | None,
     return model
 
 
-def _resolved(spec, system, frames, light, encoder, source) -> ObservationModel:
+def _resolved(spec, system, frames, light, encoder, source, track) -> ObservationModel:
     if isinstance(spec, ObservationModel):
         spec.reason = spec.reason or f"{spec.name} (as given)"
         return spec
@@ -68,12 +83,20 @@ def _resolved(spec, system, frames, light, encoder, source) -> ObservationModel:
         model.reason = f"any (auto: the {encoder} encoder was asked for)"
         return model
     from fitode.eqparse.identify import power_symmetric  # sympy: only when a fit is set up
-    seen = look(frames) if frames is not None else None
+    seen = look(frames, track) if frames is not None else None
     if seen is not None and seen.moves and seen.one_way >= ONE_WAY:
         model = PositionObservation()
         model.reason = (f"position (auto: the change moves {seen.travel:.0f} pixels, {seen.travel / seen.size:.0f}x its "
                         f"size, one way (rank correlation {seen.one_way:.2f} with time): a free encoder could bend "
                         "its path into one with other constants)")
+        return model
+    if seen is not None and seen.swings and len(system.states) == 1:
+        model = AngleObservation()
+        c = seen.circle
+        model.reason = (f"angle (auto: the change swings back and forth (rank correlation {seen.one_way:.2f} with "
+                        f"time) along an arc about a centre {c.radius:.0f} pixels away that bows {c.sagitta:.1f} "
+                        f"pixels, {c.significance:.0f}x its uncertainty (scatter {c.scatter:.1f} pixels over "
+                        f"{c.points} frames): the angle about that centre is the state in radians)")
         return model
     if not power_symmetric(system):
         model = ObservationModel()
@@ -100,6 +123,7 @@ class Look:
     size: float
     one_way: float
     gap: float = 1.0  # the frames' first singular value over their second
+    circle: Circle | None = None  # the circle the path bends about (None: a line, or too few points)
 
     @property
     def moves(self) -> bool:
@@ -108,11 +132,20 @@ class Look:
         singular value), even where its brightest core seems to wander."""
         return self.travel > self.size and self.gap < SUBSPACE_JUMP
 
+    @property
+    def swings(self) -> bool:
+        """It moves back and forth along an arc that clearly bends about a centre."""
+        c = self.circle
+        return (self.moves and self.one_way < ONE_WAY and c is not None and c.significance >= SWING
+                and c.thinness <= THIN and c.radius_error < 0.5)
+
 
 @torch.no_grad()
-def look(frames: torch.Tensor) -> Look:
-    """The look behind the auto choice, from at most LOOK_FRAMES frames spread over the clip."""
-    sub = frames[:: max(1, frames.shape[0] // LOOK_FRAMES)]
+def look(frames: torch.Tensor, track: Track | None = None) -> Look:
+    """The look behind the auto choice, from at most LOOK_FRAMES frames spread over the clip, and
+    the reader's track of them where there is one (its path and size, in source pixels)."""
+    step = max(1, frames.shape[0] // LOOK_FRAMES)
+    sub = frames[::step]
     xy, _, _, peak = centroids(sub)
     # frames that barely differ from the static scene (a lamp at its median brightness) have a
     # centroid of noise: only the frames with a clear change say where it is
@@ -129,4 +162,13 @@ def look(frames: torch.Tensor) -> Look:
     if xy.shape[0] < 3 or float((xy - xy.mean(dim=0)).abs().max()) == 0:
         return Look(0.0, max(pixels, 1.0) ** 0.5, 0.0, gap)
     _, path = line_of_motion(xy)
-    return Look(float(path.max() - path.min()), max(pixels, 1.0) ** 0.5, one_way(path), gap)
+    seen = Look(float(path.max() - path.min()), max(pixels, 1.0) ** 0.5, one_way(path), gap)
+    if track is not None and track.unseen < 0.1 * len(track):
+        # the same look at the source's resolution: the shrunk frames' centroids say whether
+        # something moves, the track how its path runs and bends
+        full = torch.from_numpy(track.filled())
+        _, path = line_of_motion(full)
+        seen = Look(seen.travel, seen.size, one_way(path[::step]), gap, fit_circle(track.filled()))
+    elif seen.moves:
+        seen.circle = fit_circle(xy.double().cpu().numpy())
+    return seen

@@ -78,6 +78,12 @@ class ObservationModel:
         self.subspace = subspace
         self.reason = ""  # one line: why this model (set by resolve_observation)
         self.equation_states: tuple[str, ...] | None = None  # set by bind
+        self.track = None  # the reader's track at the source's resolution (track.Track), set by use_track
+
+    def use_track(self, track) -> None:
+        """Take the reader's track (track.Track, one row per frame the model will be given), which a
+        model that measures a place reads instead of the shrunk frames; None for none."""
+        self.track = track
 
     def bind(self, system) -> None:
         """Take the equation's states (resolve_observation calls this before any prepare)."""

@@ -36,6 +36,10 @@ MODELS: dict[str, Entry] = {
                       "the centroid of the change along its line of motion, read linearly: no bend of the latent "
                       "(a bent parabola is nearly another parabola, with another g), but for the one bend a camera "
                       "at an angle makes (a perspective), which the whole clip fixes after a first training"),
+    "angle": Entry("angle", "AngleObservation", "the angle of a swing about its fitted pivot",
+                   "the angle in radians about the pivot of a circle fitted robustly to the tracked path, from the "
+                   "direction it hangs in: the state in its own units, with no gauge to learn (a position would read "
+                   "L sin(theta))"),
     "size": Entry("size", "SizeObservation", "the apparent radius of what grows or shrinks",
                   "the apparent radius of what grows or shrinks, read linearly: no bend of the latent"),
     "distance": Entry("size", "DistanceObservation", "its reciprocal: motion along the line of sight",

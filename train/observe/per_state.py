@@ -34,8 +34,14 @@ class PerStateObservation(MeasuredObservation):
 
     def bind(self, system) -> None:
         super().bind(system)
-        for model in self.parts.values():
+        for state, model in self.parts.items():
             model.bind(system)
+            model.equation_states = (state,)  # each part measures its own state (a position named y reads y)
+
+    def use_track(self, track) -> None:
+        super().use_track(track)
+        for model in self.parts.values():
+            model.use_track(track)
 
     def applies(self, check: str) -> bool:
         # the perspective re-reading bends a one-dimensional path

@@ -10,7 +10,27 @@ from fitode.errors import ConfigError
 
 from .base import MeasuredObservation, ObservationModel, Prepared
 from .drawing import points, record
-from .tracking import MENDED_MAX, centroids, line_of_motion, mend_one_way
+from .tracking import MENDED_MAX, centroids, line_of_motion, mend
+
+
+AXES = {"x": "x", "y": "y", "h": "y", "z": "y"}  # a state named so reads that image axis (y, h, z: up)
+
+
+def axis_of(state: str) -> str | None:
+    """The image axis a state's name says ("x" across, "y" up), or None."""
+    return AXES.get(state)
+
+
+def _mended(note: str, mended: int, n_fit: int) -> tuple[str, str | None]:
+    """The note and caution for frames whose centroid left the path of their neighbours."""
+    caution = None
+    if mended:
+        note += (f"; {mended} frame{'s' if mended != 1 else ''} whose centroid left the path of "
+                 f"{'their' if mended != 1 else 'its'} neighbours read from them")
+        if mended > MENDED_MAX * n_fit:
+            caution = (f"{mended} of {n_fit} frames had a centroid off the path of their neighbours and were read "
+                       "from them: something else changes in the view as much as the object; give --roi around it")
+    return note, caution
 
 
 class PositionObservation(MeasuredObservation):
@@ -25,40 +45,80 @@ class PositionObservation(MeasuredObservation):
     A linear encoder reads the centroid's (x, y): the latent is a position along the line of
     motion, which no encoder can bend (a bend of a parabola is nearly another parabola, with
     another g). For a fall, a slide, a level that drops; a pendulum's latent would be L sin(theta).
+    A state whose name says its axis (x across; y, h, z up) reads that axis instead, one column
+    per state: `x'' = 0; y'' = -g` measures both coordinates of a throw.
+    Where the reader measured a track at the source's resolution (fitode.video.track), the
+    centroids are its; otherwise they come from the shrunk frames.
     """
 
     name = "position"
 
     def applies(self, check: str) -> bool:
-        return True if check == "perspective" else super().applies(check)
+        # the perspective re-reading bends one column; a state per image axis is several
+        if check == "perspective":
+            states = self.equation_states or ()
+            return len(states) <= 1 or not all(axis_of(s) for s in states)
+        return super().applies(check)
 
     def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
         out = ObservationModel.prepare(self, frames, architecture, fit_frames)  # the components the checks score against
-        xy, pixels, unseen, _ = centroids(frames, fit_frames)
+        if self.track is not None and len(self.track) == frames.shape[0]:
+            # the reader's track, at the source's resolution
+            xy, pixels, unseen = torch.from_numpy(self.track.filled()).to(frames.device), self.track.area, self.track.unseen
+            where = "the reader's track at the source's resolution: "
+        else:
+            xy, pixels, unseen, _ = centroids(frames, fit_frames)
+            where = ""
         if unseen > 0.1 * frames.shape[0]:
             raise ConfigError(f"the position observation sees no change from the median frame in {unseen} of "
                               f"{frames.shape[0]} frames (the object stands still or leaves the view); "
                               "trim the clip to the motion (--start/--end) or observe 'any'")
         n_fit = xy.shape[0] if fit_frames is None else int(fit_frames)
+        states = tuple(self.equation_states or ())
+        axes = [axis_of(state) for state in states]
+        if states and all(axes):
+            prepared = self._axes(xy, states, axes, n_fit, out.components, pixels, where, frames.dtype)
+        else:
+            prepared = self._line(xy, n_fit, out.components, pixels, where, frames.dtype)
+        if where:  # the reader's track is in the source's pixels, with a frame it did not see left out
+            prepared.drawing.update(space="source",
+                                    track=[None if np.isnan(x) else [float(x), float(y)] for x, y in self.track.xy])
+        return prepared
+
+    def _line(self, xy: torch.Tensor, n_fit: int, components: np.ndarray, pixels: float, where: str,
+              dtype: torch.dtype) -> Prepared:
+        """One column: the position along the line of motion."""
         # the line of motion: a linear encoder of two collinear coordinates can cancel its own signal
         direction, raw = line_of_motion(xy, n_fit)
-        path, mended = mend_one_way(raw, n_fit)
+        path, mended = mend(raw, n_fit)
         z = path / path[:n_fit].std().clamp_min(1e-6)
         angle = float(torch.rad2deg(torch.atan2(direction[1], direction[0]))) % 180
-        note = (f"position: the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
+        note = (f"position: {where}the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
                 f"average), along its line of motion ({angle:.0f} degrees from the image's x axis), read linearly")
-        caution = None
-        if mended:
-            note += (f"; {mended} frame{'s' if mended != 1 else ''} whose centroid left the one-way path of "
-                     f"{'their' if mended != 1 else 'its'} neighbours read from them")
-            if mended > MENDED_MAX * n_fit:
-                caution = (f"{mended} of {n_fit} frames had a centroid off the path of their neighbours and were read "
-                           "from them: something else changes in the view as much as the object; give --roi around it")
+        note, caution = _mended(note, mended, n_fit)
         drawing = record(self.name, reading="line", track=points(xy),
                          mended=[int(i) for i in torch.nonzero(path != raw).flatten()] if mended else None,
                          line={"point": [float(v) for v in xy[:n_fit].mean(dim=0)],
                                "direction": [float(v) for v in direction]})
-        return self.column(z.to(frames.dtype), out.components, note, caution, drawing)
+        return self.column(z.to(dtype), components, note, caution, drawing)
+
+    def _axes(self, xy: torch.Tensor, states: tuple[str, ...], axes: list[str], n_fit: int, components: np.ndarray,
+              pixels: float, where: str, dtype: torch.dtype) -> Prepared:
+        """One column per state, each the image axis its name says (x across, y/h/z up), so that
+        `y'' = -g` reads the height of a throw, not its flight's main direction (the horizontal)."""
+        columns, total = [], 0
+        for axis in axes:
+            coordinate = xy[:, 0] if axis == "x" else -xy[:, 1]  # image y points down
+            coordinate, mended = mend(coordinate - coordinate[:n_fit].mean(), n_fit)
+            total += mended
+            columns.append(coordinate / coordinate[:n_fit].std().clamp_min(1e-6))
+        named = ", ".join(f"{s} {'across' if a == 'x' else 'up'}" for s, a in zip(states, axes))
+        note = (f"position: {where}the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
+                f"average), each state read along the image axis its name says ({named}), linearly")
+        note, caution = _mended(note, total, n_fit)
+        inputs = torch.stack(columns, dim=1).to(dtype).reshape(len(columns[0]), len(columns), 1, 1)
+        drawing = record(self.name, track=points(xy), states={s: a for s, a in zip(states, axes)})
+        return Prepared(inputs, components, len(columns), note, caution, states, drawing)
 
     def reread(self, prepared: Prepared, state: np.ndarray, perspective: dict, fit_frames: int) -> Prepared | None:
         """The path read through the camera's perspective that perspective.perspective_check found on a

@@ -86,6 +86,17 @@ def mend_one_way(path: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Te
     return torch.as_tensor(mended, dtype=path.dtype, device=path.device), int(off.sum())
 
 
+def mend(path: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Tensor, int]:
+    """A path (T,) with the frames that leave it read from their neighbours, and how many those
+    are: against the running median where it runs one way (mend_one_way), else against a local
+    parabola (mend_strays: an oscillation)."""
+    n_fit = path.shape[0] if n_fit is None else int(n_fit)
+    if n_fit >= 8 and one_way(path[:n_fit]) >= ONE_WAY:
+        return mend_one_way(path, n_fit)
+    mended, count = mend_strays(path.double().cpu().numpy(), n_fit)
+    return torch.as_tensor(mended, dtype=path.dtype, device=path.device), count
+
+
 def one_way(path: torch.Tensor) -> float:
     """How one way a path (T,) runs in time: the absolute rank correlation of its values with
     their frame numbers (1: monotone; about 0: back and forth)."""
@@ -143,3 +154,62 @@ def _strongest_region(heat: torch.Tensor) -> torch.Tensor:
         mass[0] = 0.0
         kept[t] = torch.where(torch.from_numpy(labels == int(np.argmax(mass))).to(heat.device), heat[t], 0.0)
     return kept
+
+
+STRAY_SPAN = 4  # neighbours on each side whose local parabola a frame of a turning path is checked against
+ROUNDS = 5
+
+
+def mend_strays(xy: np.ndarray, n_fit: int | None = None) -> tuple[np.ndarray, int]:
+    """A path (T,) or (T, k) of any shape (an oscillation too) with the frames that leave it
+    read from their neighbours, and how many those are.
+
+    Each frame is compared with the parabola in time through the 2 STRAY_SPAN frames around it
+    (itself left out; at the ends, the nearest such frames), fitted per coordinate: a swing or a
+    bounce is smooth over a few frames, a centroid that jumped to something else for a frame or
+    two is not. Far means more than MEND_SIGMAS times the misses' robust spread over the first
+    n_fit frames and more than MEND_PIXELS. A stray also pulls its neighbours' parabolas, so the
+    first round takes only the frames that miss most among their neighbours, and later rounds
+    check every frame against the path so mended (up to ROUNDS, until nothing changes)."""
+    x = np.asarray(xy, dtype=np.float64)
+    x = x[:, None] if x.ndim == 1 else x
+    n, h = len(x), STRAY_SPAN
+    n_fit = n if n_fit is None else int(n_fit)
+    if n < 2 * h + 3 or n_fit < 2 * h + 3:
+        return np.asarray(xy), 0
+    # frame t is predicted from the window of 2h + 1 frames starting at start[t], t left out: one
+    # linear filter per place of t in its window (least squares, evaluated at t)
+    start = np.clip(np.arange(n) - h, 0, n - 2 * h - 1)
+    place = np.arange(n) - start
+    offsets = np.arange(2 * h + 1, dtype=np.float64)
+    filters = np.zeros((2 * h + 1, 2 * h + 1))
+    for p in range(2 * h + 1):
+        others = np.delete(offsets, p) - p
+        design = np.column_stack([np.ones_like(others), others, others ** 2])
+        filters[p] = np.insert(np.linalg.pinv(design)[0], p, 0.0)
+    index = start[:, None] + np.arange(2 * h + 1)[None, :]  # (T, 2h+1)
+    mended, off, first = x, np.zeros(n, dtype=bool), None
+    threshold = None
+    for _ in range(ROUNDS):
+        predicted = np.einsum("tw,twk->tk", filters[place], mended[index])
+        miss = np.linalg.norm(x - predicted, axis=1)
+        if threshold is None:
+            threshold = max(MEND_SIGMAS * 1.4826 * float(np.median(miss[:n_fit])), MEND_PIXELS)
+        far = miss > threshold
+        if first is None:
+            padded = np.concatenate([np.zeros(h), miss, np.zeros(h)])
+            first = far & (miss >= np.lib.stride_tricks.sliding_window_view(padded, 2 * h + 1).max(axis=1))
+            now = first
+        else:  # a neighbour a stray's parabola pulled is let go once the stray is mended
+            now = first | far
+        if np.array_equal(now, off):
+            break
+        off = now
+        if off.sum() > n // 2:
+            return np.asarray(xy), 0
+        good = np.flatnonzero(~off)
+        mended = x.copy()
+        for j in range(x.shape[1]):
+            mended[off, j] = np.interp(np.flatnonzero(off), good, x[good, j])
+    out = mended[:, 0] if np.asarray(xy).ndim == 1 else mended
+    return out, int(off.sum())

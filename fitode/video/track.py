@@ -1,0 +1,177 @@
+"""Where the moving object is in every frame, measured on the decoded frames before they are
+shrunk: the reader's streaming pass hands each kept frame (inside --roi) to a TrackRecorder,
+which keeps it in gray, and measures the whole clip once the pass is over.
+
+The static scene is the per-pixel median of BACKGROUND_FRAMES frames spread over the clip; an
+object that lingers somewhere leaves a ghost there, so the background is rebuilt, pixel by pixel,
+from the frames in which the first measure put the object farther away than twice its size (as
+fitode.train.observe.tracking does on the shrunk frames). In each frame the object is the
+connected region of largest total change among the pixels that differ from the background by
+more than NOISE_SIGMAS times the noise and by more than CORE of the frame's largest change; the
+centroid of that core and the ring of pixels around it, weighted by their change over the noise
+floor, is sub-pixel (within a quarter of a pixel for a ball two pixels across). The core is first
+opened (eroded, then dilated, by 3x3) where that leaves anything: a pendulum's string is thin and
+often more contrasted than its bob, and pulls the centroid towards the pivot by a varying amount. The region is found on the change shrunk by LOCATE (cheap)
+and measured at full resolution inside it.
+
+The frames are kept at the source's resolution unless the clip would take more than TRACK_BYTES
+so; then they are shrunk by the smallest whole factor that fits, and the track says so.
+"""
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from fitode.train.observe.track import Track
+
+TRACK_BYTES = 384 * 2 ** 20
+BACKGROUND_FRAMES = 48
+NOISE_SIGMAS = 4.0
+CORE = 0.5
+LOCATE = 4  # the whole factor the change is shrunk by to find the object's region
+
+
+class TrackRecorder:
+    """Collects the kept frames of one streaming pass in gray (crop: (x, y, w, h) in source
+    pixels, the crop the training frames use; expected: about how many frames will come)."""
+
+    def __init__(self, crop: tuple[int, int, int, int], expected: int | None, order: str = "BGR"):
+        x, y, w, h = crop
+        n = max(1, int(expected or 1024))
+        self.factor = max(1, math.ceil(math.sqrt(w * h * n / TRACK_BYTES)))
+        self.crop, self.order = crop, order
+        self.frames: list[np.ndarray] = []
+        self.dropped = False  # the clip ran far past its expected length: no track
+
+    def add(self, frame: np.ndarray, unit: tuple[float, float], mask: np.ndarray | None) -> None:
+        """One decoded source frame (H, W) or (H, W, C) of any dtype; unit: (scale, offset) to
+        [0, 1]; mask: the crop's mask (1 keeps a pixel), or None."""
+        if self.dropped:
+            return
+        x, y, w, h = self.crop
+        f = frame[y:y + h, x:x + w]
+        if f.ndim == 3 and f.shape[2] == 4:
+            f = f[:, :, :3]
+        if f.ndim == 3:
+            f = cv2.cvtColor(np.ascontiguousarray(f), cv2.COLOR_BGR2GRAY if self.order == "BGR" else cv2.COLOR_RGB2GRAY)
+        if f.dtype != np.uint8 or mask is not None:
+            scale, offset = unit
+            g = (f.astype(np.float32) - np.float32(offset)) * np.float32(255.0 * scale)
+            if mask is not None:
+                g *= mask
+            f = np.clip(g + 0.5, 0, 255).astype(np.uint8)
+        if self.factor > 1:
+            k = self.factor
+            f = cv2.resize(f[:h - h % k, :w - w % k], (w // k, h // k), interpolation=cv2.INTER_AREA)
+        self.frames.append(f)
+        if len(self.frames) * f.size > 2 * TRACK_BYTES:
+            self.frames, self.dropped = [], True
+
+    def finish(self, index: np.ndarray | None = None) -> Track | None:
+        """The track of the collected frames index (the clip's frames after its stride and its
+        frame times' repairs; None: all), in source pixels; None where too few frames came, or
+        too many to keep."""
+        if self.dropped or len(self.frames) < 3:
+            return None
+        index = np.arange(len(self.frames)) if index is None else np.asarray(index, dtype=int)
+        if len(index) < 3 or index.min() < 0 or index.max() >= len(self.frames):
+            return None
+        stack = np.stack([self.frames[i] for i in index])
+        self.frames = []
+        xy, area = measure(stack)
+        k = self.factor
+        xy = np.column_stack([self.crop[0] + (xy[:, 0] + 0.5) * k - 0.5, self.crop[1] + (xy[:, 1] + 0.5) * k - 0.5])
+        where = "at the source's resolution" if k == 1 else f"on frames shrunk {k}x to stay within memory"
+        note = f"the change from the static scene, {area * k * k:.0f} source pixels on average, measured {where}"
+        return Track(xy, float(area * k * k), k, note)
+
+
+def measure(stack: np.ndarray) -> tuple[np.ndarray, float]:
+    """(T, 2) change-weighted centroid (x, y) in the frames' pixels of the moving object in gray
+    frames (T, H, W) uint8, NaN where nothing changes, and its mean area in pixels."""
+    sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), BACKGROUND_FRAMES)).round().astype(int))
+    background = np.median(stack[sample], axis=0).round().astype(np.uint8)
+    noise = _noise(stack[sample[::6]], background)
+    xy, area = _measure_all(stack, background, noise, range(len(stack)))
+    seen = ~np.isnan(xy[sample, 0])
+    if seen.any():
+        size = math.sqrt(max(float(np.nanmean(area)), 1.0))
+        h, w = background.shape
+        ys, xs = np.mgrid[0:h, 0:w]
+        total = np.zeros((h, w), np.float64)
+        count = np.zeros((h, w), np.int32)
+        for t in sample[seen]:
+            far = (xs - xy[t, 0]) ** 2 + (ys - xy[t, 1]) ** 2 > (2 * size + 2) ** 2
+            total += np.where(far, stack[t], 0)
+            count += far
+        clean = (total / np.maximum(count, 1)).round().astype(np.uint8)
+        rebuilt = np.where(count >= max(3, len(sample) // 10), clean, background)
+        # only the frames whose object lies near a pixel the rebuilt background changed (a ghost
+        # where the object lingered) are measured again
+        moved = np.abs(rebuilt.astype(np.int16) - background) > NOISE_SIGMAS * noise
+        if moved.any():
+            my, mx = np.nonzero(moved)
+            reach = 4 * size + 4
+            again = [t for t in range(len(stack)) if np.isnan(xy[t, 0]) or
+                     np.any((np.abs(mx - xy[t, 0]) < reach) & (np.abs(my - xy[t, 1]) < reach))]
+            more, more_area = _measure_all(stack, rebuilt, noise, again)
+            xy[again], area[again] = more[again], more_area[again]
+    return xy, float(np.nanmean(area)) if np.isfinite(area).any() else 0.0
+
+
+def _noise(frames: np.ndarray, background: np.ndarray) -> float:
+    """The noise of a frame's difference from the background, as a standard deviation: most
+    pixels show only noise."""
+    return float(1.4826 * np.median(np.abs(frames[:, ::2, ::2].astype(np.int16) - background[::2, ::2]))) + 0.5
+
+
+def _measure_all(stack: np.ndarray, background: np.ndarray, noise: float, frames) -> tuple[np.ndarray, np.ndarray]:
+    xy = np.full((len(stack), 2), np.nan)
+    area = np.full(len(stack), np.nan)
+    for t in frames:
+        found = _measure_one(stack[t], background, noise)
+        if found is not None:
+            xy[t], area[t] = found[:2], found[2]
+    return xy, area
+
+
+def _measure_one(frame: np.ndarray, background: np.ndarray, noise: float) -> tuple[float, float, float] | None:
+    change = cv2.absdiff(frame, background)
+    h, w = change.shape
+    k = LOCATE if min(h, w) >= 16 * LOCATE else 1
+    small = cv2.resize(change[:h - h % k, :w - w % k], (w // k, h // k), interpolation=cv2.INTER_AREA) if k > 1 else change
+    peak = float(small.max())
+    low = NOISE_SIGMAS * noise / k  # an average over k x k pixels has 1/k of the noise
+    if peak <= low:
+        return None
+    hot = cv2.threshold(small, max(low, CORE * peak), 1, cv2.THRESH_BINARY)[1]
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(cv2.dilate(hot, None), connectivity=8)
+    if n < 2:
+        return None
+    if n == 2:
+        best = 1
+    else:
+        mass = np.bincount(labels.ravel(), weights=(small * hot).ravel(), minlength=n)
+        best = int(np.argmax(mass[1:])) + 1
+    bx, by, bw, bh = (int(v) for v in stats[best, :4])
+    # the region at full resolution, one shrunk pixel wider on each side (its edge pixels were averaged)
+    x0, y0, x1, y1 = max(0, (bx - 1) * k), max(0, (by - 1) * k), min(w, (bx + bw + 1) * k), min(h, (by + bh + 1) * k)
+    box = change[y0:y1, x0:x1].astype(np.float32)
+    if n > 2:  # only the chosen region: another may reach into its box
+        inside = labels[y0 // k:(y1 + k - 1) // k, x0 // k:(x1 + k - 1) // k] == best
+        box *= np.repeat(np.repeat(inside, k, axis=0), k, axis=1)[:box.shape[0], :box.shape[1]]
+    # the core's pixels and the ring of partly covered pixels around it, each weighted by its change
+    # over the noise: a core cut at a share of the peak drops the partly covered edge pixels unevenly,
+    # which moves a small object's centroid by a good part of a pixel
+    core = (box > max(NOISE_SIGMAS * noise, CORE * float(box.max()))).astype(np.uint8)
+    opened = cv2.morphologyEx(core, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    if opened.any():
+        core = opened
+    weight = np.where(cv2.dilate(core, None) > 0, np.maximum(box - NOISE_SIGMAS * noise, 0.0), 0.0)
+    total = float(weight.sum())
+    if total <= 0:
+        return None
+    return (x0 + float(weight.sum(axis=0) @ np.arange(x1 - x0)) / total,
+            y0 + float(weight.sum(axis=1) @ np.arange(y1 - y0)) / total, float(np.count_nonzero(weight)))

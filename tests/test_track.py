@@ -1,0 +1,59 @@
+"""Position read along the axes a state's name says (x across; y, h, z up), from the reader's
+track: `y'' = -g` reads the height of a throw, `x'' = 0; y'' = -g` both coordinates."""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from fitode.eqparse import parse
+from fitode.train.observe import PositionObservation, Track, resolve_observation
+
+
+def _throw(n=60):
+    t = np.arange(n) / 30
+    return np.column_stack([20 + 200 * t, 200 - 150 * t + 120 * t ** 2])  # mostly across, y down
+
+
+def _model(eq: str, xy: np.ndarray, observe=None):
+    system = parse(eq)
+    model = resolve_observation(observe or "position", system, track=Track(xy, 5.0, 1, "generated"))
+    return model, model.prepare(torch.zeros(len(xy), 1, 8, 8)).in_order(system.states)
+
+
+def test_a_state_named_y_reads_the_height_not_the_flight_direction():
+    xy = _throw()
+    _, prepared = _model("y'' = -g", xy)
+    z = prepared.inputs.reshape(-1).numpy()
+    assert np.corrcoef(z, -xy[:, 1])[0, 1] > 0.999  # up is minus the image's y
+    assert prepared.drawing["states"] == {"y": "y"} and len(prepared.drawing["track"]) == len(xy)
+    _, along = _model("s'' = -g", xy)  # a name that says no axis: the line of motion, the horizontal here
+    assert abs(np.corrcoef(along.inputs.reshape(-1).numpy(), xy[:, 0])[0, 1]) > 0.95
+    assert "line" in along.drawing
+
+
+def test_two_states_named_for_axes_measure_both_coordinates():
+    xy = _throw()
+    model, prepared = _model("x'' = 0; y'' = -g", xy)
+    assert prepared.states == ("x", "y") and prepared.inputs.shape == (len(xy), 2, 1, 1)
+    cols = prepared.inputs[:, :, 0, 0].numpy()
+    assert np.corrcoef(cols[:, 0], xy[:, 0])[0, 1] > 0.999 and np.corrcoef(cols[:, 1], -xy[:, 1])[0, 1] > 0.999
+    assert not model.applies("perspective")
+    per_state, one_each = _model("x'' = 0; y'' = -g", xy, observe="x=position;y=position")
+    np.testing.assert_allclose(one_each.inputs.numpy(), prepared.inputs.numpy(), atol=1e-6)
+    assert isinstance(model, PositionObservation)
+
+
+def test_strays_of_an_oscillation_are_mended_and_a_clean_swing_is_left_alone():
+    from fitode.train.observe import mend_strays
+
+    rng = np.random.default_rng(0)
+    t = np.arange(300) / 30
+    clean = np.column_stack([100 + 40 * np.sin(2 * np.pi * t / 1.3), 100 + 3 * np.cos(2 * np.pi * t / 1.3)])
+    clean += rng.normal(0, 0.3, clean.shape)
+    bad = clean.copy()
+    strays = [50, 51, 120, 200, 201, 202]
+    bad[strays] += [60, -30]  # the centroid jumped to something else for a frame or three
+    mended, count = mend_strays(bad)
+    assert set(strays) <= set(np.flatnonzero(np.linalg.norm(mended - bad, axis=1) > 0)) and count <= 10
+    assert np.abs(mended - clean).max() < 5  # from 67 pixels off
+    assert mend_strays(clean)[1] == 0

@@ -1,0 +1,137 @@
+"""The angle observation: the latent is the angle, in radians, about the centre the tracked
+point's path bends about (a pendulum's pivot), from the direction it hangs in."""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from fitode.errors import ConfigError
+
+from .base import MeasuredObservation, ObservationModel, Prepared
+from .circle import Circle, fit_circle
+from .tracking import MENDED_MAX, centroids, mend_strays
+
+BENDS = 2.0  # sagitta over scatter under which a path does not bend about any centre (ConfigError)
+# the share by which a loosely fitted pivot may move a constant, from which it is a caution: an
+# angle's scale off by a share e (the radius's standard error) moves a pendulum's period by about
+# e theta^2 / 8 at amplitude theta, and so L by e theta^2 / 4
+SCALE_EFFECT = 0.005
+NOT_PLANAR = 0.03  # scatter over radius from which the path is not one circle (a swing seen at a slant, a spring)
+
+
+class AngleObservation(MeasuredObservation):
+    """The camera sees a swing: the latent is the angle of the tracked point about the pivot.
+
+    Where the object is in each frame comes from the reader's track at the source's resolution
+    (fitode.video.track) when there is one, else from the shrunk frames (tracking.centroids).
+    A circle is fitted to that path robustly (circle.py; the pivot may lie outside the frame),
+    and the latent is the point's angle about its centre, measured from the direction it hangs
+    in (the mean angle over whole swings): the state in its own units, so a pendulum's L comes
+    out at any amplitude, with no gauge to learn and no prior. A position would read L sin(theta).
+    """
+
+    name = "angle"
+    physical_units = True
+
+    def __init__(self, subspace: bool = True):
+        super().__init__(subspace)
+        self.scale_matters = True  # the equation's constants change when the angle is rescaled (set by bind)
+
+    def bind(self, system) -> None:
+        super().bind(system)
+        from fitode.eqparse.gauge import gauge_plan  # sympy: only when a fit is set up
+        try:
+            self.scale_matters = gauge_plan(system)[system.states[0]].scale_learned
+        except Exception:  # noqa: BLE001 - the symmetry test can fail on unusual equations: assume it matters
+            self.scale_matters = True
+
+    def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
+        out = ObservationModel.prepare(self, frames, architecture, fit_frames)  # the components the checks score against
+        n = int(frames.shape[0])
+        n_fit = n if fit_frames is None else int(fit_frames)
+        xy, where = self.path(frames, fit_frames)
+        xy, mended = mend_strays(xy, n_fit)
+        circle = fit_circle(xy[:n_fit])
+        if circle is None or circle.bend < BENDS:
+            bend = "lies on a line" if circle is None else f"bows {circle.sagitta:.2g} pixels, {circle.bend:.1f}x its scatter"
+            raise ConfigError(f"the angle observation needs a path that bends about a pivot; this one {bend}: "
+                              "observe 'position' for a motion along a line")
+        theta, hang = angles(xy, circle, n_fit)
+        note = (f"angle: {where}, about the pivot ({circle.centre[0]:.1f}, {circle.centre[1]:.1f}) at radius "
+                f"{circle.radius:.1f} pixels (scatter {circle.scatter:.2f}, the arc bows {circle.sagitta:.1f}), in "
+                f"radians from the direction it hangs in; swings up to {np.degrees(np.abs(theta[:n_fit]).max()):.0f} degrees")
+        caution = _caution(circle, float(np.abs(theta[:n_fit]).max())) if self.scale_matters else None
+        if mended:
+            note += f"; {mended} frame{'s' if mended != 1 else ''} off the path of the neighbours read from them"
+            if mended > MENDED_MAX * n_fit:
+                caution = (f"{mended} of {n_fit} frames had a centroid off the path of their neighbours and were "
+                           "read from them: something else changes in the view as much as the object; give --roi")
+        prepared = self.column(torch.as_tensor(theta, dtype=frames.dtype, device=frames.device), out.components,
+                               note, caution)
+        prepared.drawing = self.drawing(circle, hang, xy)
+        return prepared
+
+    def drawing(self, circle: Circle, hang: float, xy: np.ndarray) -> dict:
+        """The measurement record (drawing.py): in source pixels where the track is the reader's,
+        else in the frames' pixels (fitode.measurement maps those)."""
+        states = {s: "angle" for s in (self.equation_states or ())[:1]}
+        if self.track is not None:
+            track = [None if np.isnan(x) else [float(x), float(y)] for x, y in self.track.xy]
+            space = "source"
+        else:
+            track, space = [[float(x), float(y)] for x, y in xy], "frames"
+        return {"kind": self.name, "space": space, "states": states, "track": track,
+                "pivot": [circle.centre[0], circle.centre[1]], "radius": circle.radius, "hanging": float(hang)}
+
+    def path(self, frames: torch.Tensor, fit_frames: int | None) -> tuple[np.ndarray, str]:
+        """(T, 2) where the object is, and one line on where that came from."""
+        if self.track is not None:
+            if len(self.track) != frames.shape[0]:
+                raise ConfigError(f"the track has {len(self.track)} frames for {frames.shape[0]} frames")
+            if self.track.unseen > 0.1 * len(self.track):
+                raise ConfigError(f"the angle observation sees nothing move in {self.track.unseen} of "
+                                  f"{len(self.track)} frames; trim the clip to the motion (--start/--end)")
+            return self.track.filled(), f"the tracked point ({self.track.note})"
+        xy, pixels, unseen, _ = centroids(frames, fit_frames)
+        if unseen > 0.1 * frames.shape[0]:
+            raise ConfigError(f"the angle observation sees no change from the median frame in {unseen} of "
+                              f"{frames.shape[0]} frames; trim the clip to the motion (--start/--end)")
+        return xy.double().cpu().numpy(), f"the centroid of what differs most from the static scene ({pixels:.0f} pixels)"
+
+
+def angles(xy: np.ndarray, circle: Circle, n_fit: int | None = None) -> tuple[np.ndarray, float]:
+    """The angle (T,) of each point about the circle's centre, from the direction the path hangs
+    in, and that direction (radians, image axes: x right, y down). The direction is the mean
+    angle over the whole swings of the first n_fit points (from the first crossing of the mean
+    to the last crossing in the same sense): a damped swing's mean over a part of a swing leans
+    to the side it started on."""
+    xy = np.asarray(xy, dtype=np.float64)
+    n_fit = len(xy) if n_fit is None else int(n_fit)
+    raw = np.unwrap(np.arctan2(xy[:, 1] - circle.centre[1], xy[:, 0] - circle.centre[0]))
+    hang = float(np.median(raw[:n_fit]))
+    for _ in range(3):
+        side = np.sign(raw[:n_fit] - hang)
+        cross = np.flatnonzero(side[1:] * side[:-1] < 0)
+        if len(cross) < 4:
+            break
+        # whole swings, once starting on the way out and once on the way back: over whole swings a
+        # decaying swing's mean still leans to the side of its first half swing, by as much
+        # the other way for the other start
+        means = []
+        for first in (0, 1):
+            last = first + 2 * ((len(cross) - 1 - first) // 2)
+            means.append(raw[cross[first] + 1:cross[last] + 1].mean())
+        hang = float(np.mean(means))
+    return raw - hang, hang
+
+
+def _caution(circle: Circle, amplitude: float) -> str | None:
+    effect = amplitude ** 2 / 4 * circle.radius_error
+    if effect > SCALE_EFFECT:
+        return (f"the path bows only {circle.bend:.1f}x its scatter about the fitted pivot, which sets the angle's "
+                f"scale to {100 * circle.radius_error:.1f}%: at a swing of {np.degrees(amplitude):.0f} degrees that "
+                f"may move a constant by {100 * effect:.1f}%")
+    if circle.scatter > NOT_PLANAR * circle.radius:
+        return (f"the path strays {100 * circle.scatter / circle.radius:.1f}% of its radius from one circle (a swing "
+                "that is not in a plane facing the camera, or a point that is not the swinging object's)")
+    return None
