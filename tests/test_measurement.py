@@ -45,7 +45,7 @@ def test_a_position_is_recorded_in_source_pixels_through_the_crop_and_the_resize
     t = np.arange(60) / 30.0
     centres = np.stack([70 + 40 * t ** 2, 50 + 25 * t ** 2], axis=1)  # accelerating along a known line, inside the crop
     path = disc_clip(tmp_path / "slide.npy", centres, np.full(len(t), 9.0))
-    clip, prepared, m = measured(path, PositionObservation(), "x'' = a", roi=ROI)
+    clip, prepared, m = measured(path, PositionObservation(), "s'' = a", roi=ROI)  # s says no axis: the line
     assert clip.size != SOURCE and geometry(clip).scale[0] > 3  # measured on shrunk frames
     assert prepared.drawing["space"] == "frames" and m["space"] == "source"
     track = np.array(m["track"])
@@ -54,11 +54,11 @@ def test_a_position_is_recorded_in_source_pixels_through_the_crop_and_the_resize
     d = np.array(m["line"]["direction"])
     truth = np.array([40.0, 25.0]) / np.hypot(40, 25)
     assert abs(abs(d @ truth) - 1) < 1e-3
-    assert m["states"] == {"x": "line"} and m["crop"] == list(geometry(clip).box)
+    assert m["states"] == {"s": "line"} and m["crop"] == list(geometry(clip).box)
     assert m["source_size"] == [SOURCE[1], SOURCE[0]]
     # the fitted trajectory drawn on the image: a latent affine in the path maps back onto it
     z = (track - track.mean(axis=0)) @ d * -0.37 + 2.0
-    (reading,) = readings(m, z[:, None], z[:, None], ["x"])
+    (reading,) = readings(m, z[:, None], z[:, None], ["s"])
     assert np.abs(reading.points - centres).max() < 1.5
 
 

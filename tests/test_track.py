@@ -57,3 +57,11 @@ def test_strays_of_an_oscillation_are_mended_and_a_clean_swing_is_left_alone():
     assert set(strays) <= set(np.flatnonzero(np.linalg.norm(mended - bad, axis=1) > 0)) and count <= 10
     assert np.abs(mended - clean).max() < 5  # from 67 pixels off
     assert mend_strays(clean)[1] == 0
+
+
+def test_a_named_axis_that_barely_moves_is_taken_for_a_habit():
+    t = np.arange(90) / 30
+    bounce = np.column_stack([100 + 0.5 * np.sin(7 * t), 120 + 30 * np.cos(7 * t)])  # up and down, named x
+    _, prepared = _model("x'' = -k*x", bounce)
+    assert abs(np.corrcoef(prepared.inputs.reshape(-1).numpy(), bounce[:, 1])[0, 1]) > 0.99
+    assert "carries under" in prepared.note

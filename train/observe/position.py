@@ -14,6 +14,10 @@ from .tracking import MENDED_MAX, centroids, line_of_motion, mend
 
 
 AXES = {"x": "x", "y": "y", "h": "y", "z": "y"}  # a state named so reads that image axis (y, h, z: up)
+# a named axis is read where it carries at least this share of the motion's spread along its line;
+# where it carries less, the name is taken for a habit (x'' = -k*x for a spring that bounces up and
+# down) and the line of motion is read, with a note
+AXIS_SHARE = 0.3
 
 
 def axis_of(state: str) -> str | None:
@@ -31,6 +35,14 @@ def _mended(note: str, mended: int, n_fit: int) -> tuple[str, str | None]:
             caution = (f"{mended} of {n_fit} frames had a centroid off the path of their neighbours and were read "
                        "from them: something else changes in the view as much as the object; give --roi around it")
     return note, caution
+
+
+def _weak_axes(xy: torch.Tensor, axes: list[str]) -> list[int]:
+    """The states whose named axis carries under AXIS_SHARE of the spread along the line of motion."""
+    _, along = line_of_motion(xy)
+    spread = float(along.std())
+    columns = {"x": xy[:, 0], "y": xy[:, 1]}
+    return [i for i, axis in enumerate(axes) if float(columns[axis].std()) < AXIS_SHARE * spread]
 
 
 class PositionObservation(MeasuredObservation):
@@ -76,10 +88,15 @@ class PositionObservation(MeasuredObservation):
         n_fit = xy.shape[0] if fit_frames is None else int(fit_frames)
         states = tuple(self.equation_states or ())
         axes = [axis_of(state) for state in states]
-        if states and all(axes):
+        weak = _weak_axes(xy[:n_fit], axes) if states and all(axes) else []
+        if states and all(axes) and not weak:
             prepared = self._axes(xy, states, axes, n_fit, out.components, pixels, where, frames.dtype)
         else:
             prepared = self._line(xy, n_fit, out.components, pixels, where, frames.dtype)
+            if weak:
+                prepared.note += (f"; not along the axis {'the name' if len(weak) == 1 else 'the names'} "
+                                  f"{', '.join(states[i] for i in weak)} would say: it carries under "
+                                  f"{100 * AXIS_SHARE:.0f}% of the motion")
         if where:  # the reader's track is in the source's pixels, with a frame it did not see left out
             prepared.drawing.update(space="source",
                                     track=[None if np.isnan(x) else [float(x), float(y)] for x, y in self.track.xy])

@@ -156,7 +156,7 @@ def _strongest_region(heat: torch.Tensor) -> torch.Tensor:
     return kept
 
 
-STRAY_SPAN = 4  # neighbours on each side whose local parabola a frame of a turning path is checked against
+STRAY_SPAN = 2  # neighbours on each side whose local parabola a frame of a turning path is checked against
 ROUNDS = 5
 
 
@@ -165,7 +165,8 @@ def mend_strays(xy: np.ndarray, n_fit: int | None = None) -> tuple[np.ndarray, i
     read from their neighbours, and how many those are.
 
     Each frame is compared with the parabola in time through the 2 STRAY_SPAN frames around it
-    (itself left out; at the ends, the nearest such frames), fitted per coordinate: a swing or a
+    (itself left out; at the ends, the nearest such frames, its miss then scaled down by the
+    larger noise of an extrapolation), fitted per coordinate: a swing or a
     bounce is smooth over a few frames, a centroid that jumped to something else for a frame or
     two is not. Far means more than MEND_SIGMAS times the misses' robust spread over the first
     n_fit frames and more than MEND_PIXELS. A stray also pulls its neighbours' parabolas, so the
@@ -188,13 +189,15 @@ def mend_strays(xy: np.ndarray, n_fit: int | None = None) -> tuple[np.ndarray, i
         design = np.column_stack([np.ones_like(others), others, others ** 2])
         filters[p] = np.insert(np.linalg.pinv(design)[0], p, 0.0)
     index = start[:, None] + np.arange(2 * h + 1)[None, :]  # (T, 2h+1)
+    # a miss in units of the noise it would have: a frame at an end is extrapolated, with a larger one
+    gain = np.sqrt(1 + (filters ** 2).sum(axis=1))[place]
     mended, off, first = x, np.zeros(n, dtype=bool), None
     threshold = None
     for _ in range(ROUNDS):
         predicted = np.einsum("tw,twk->tk", filters[place], mended[index])
-        miss = np.linalg.norm(x - predicted, axis=1)
+        miss = np.linalg.norm(x - predicted, axis=1) / gain
         if threshold is None:
-            threshold = max(MEND_SIGMAS * 1.4826 * float(np.median(miss[:n_fit])), MEND_PIXELS)
+            threshold = max(MEND_SIGMAS * 1.4826 * float(np.median(miss[:n_fit])), MEND_PIXELS / gain.min())
         far = miss > threshold
         if first is None:
             padded = np.concatenate([np.zeros(h), miss, np.zeros(h)])
