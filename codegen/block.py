@@ -251,7 +251,7 @@ class PhysicsBlock(nn.Module):
 
     def difference_state(self, z_head: torch.Tensor, dt: float) -> torch.Tensor:
         """The finite-difference state at the anchor, (..., n_slots), from z_head (..., n_context, dim)."""
-        d = torch.einsum("kc,...cd->...kd", self._weights(z_head, dt), z_head)
+        d = torch.matmul(self._weights(z_head, dt), z_head)  # einsum took 2000x longer here (float64, batched)
         return d.reshape(*d.shape[:-2], -1)[..., self._slot_src]
 
     @torch.no_grad()

@@ -52,7 +52,8 @@ class TrainConfig:
     default, because these small models gain little from threads and lose much when the machine
     is busy: 2 threads were 11x slower than 1 under load).
     check_every: steps between checks that the loss and constants are finite (each check is a
-    host synchronisation).
+    host synchronisation). stretch: on a measured path, fit only the stretch that one trajectory
+    of the equation explains (train/stretch.py); off where the user chose the frames (--start/--end).
     """
 
     window: int | None = None
@@ -79,6 +80,7 @@ class TrainConfig:
     device: str = "cpu"
     threads: int | None = 1
     check_every: int = 10
+    stretch: bool = True
 
     def __post_init__(self) -> None:
         for name in ("max_steps", "restarts", "substeps", "patience", "check_every"):
@@ -98,7 +100,7 @@ class TrainConfig:
         _positive_float("selection_factor", self.selection_factor)
         if self.selection_factor < 1:
             raise ConfigError(f"selection_factor must be at least 1, got {self.selection_factor}")
-        for name in ("use_kl", "gauge"):
+        for name in ("use_kl", "gauge", "stretch"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"{name} must be True or False, got {getattr(self, name)!r}")
         self.prior = _prior(self.prior)

@@ -24,7 +24,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .trajectory import TrajectoryFit, fit_trajectory
+from .trajectory import TrajectoryFit, fit_trajectory, long_options
 from .findings import Finding
 
 HALF_TOL = 0.05
@@ -40,8 +40,8 @@ def whole_clip_check(system, params: Mapping, state: np.ndarray, dt: float, star
     half = x.shape[0] // 2
     if half < 8 or not np.all(np.isfinite(x)):
         return None, {}
-    halves = [fit_trajectory(system, params, part, dt, start, integrator=config.integrator, substeps=config.substeps)
-              for part in (x[:half], x[half:])]
+    halves = [fit_trajectory(system, params, part, dt, start, integrator=config.integrator, substeps=config.substeps,
+                             **long_options(len(part))) for part in (x[:half], x[half:])]
     if any(h is None for h in halves):
         return None, {}
     numbers = {n: [halves[0].values[n], halves[0].errors[n], halves[1].values[n], halves[1].errors[n]]
@@ -75,7 +75,8 @@ def one_trajectory_check(system, params: Mapping, state: np.ndarray, dt: float, 
     if x.shape[0] < 16 or not np.all(np.isfinite(x)):
         return [], {}
     if fitted is None:
-        fitted = fit_trajectory(system, params, x, dt, values, integrator=config.integrator, substeps=config.substeps)
+        fitted = fit_trajectory(system, params, x, dt, values, integrator=config.integrator, substeps=config.substeps,
+                                **long_options(len(x)))
     if fitted is None:
         return [], {}
     found, numbers = [], {}

@@ -8,7 +8,7 @@ from typing import Mapping
 import numpy as np
 
 from .consistency import SIGMAS
-from .trajectory import PERSPECTIVE, TrajectoryFit, fit_trajectory
+from .trajectory import PERSPECTIVE, TrajectoryFit, fit_trajectory, long_options
 
 BEND_MIN = 0.01  # a perspective that bends the path's ends by less changes nothing worth a second training
 
@@ -33,7 +33,7 @@ def perspective_check(system, params: Mapping, state: np.ndarray, dt: float, sta
     x = np.asarray(state, dtype=np.float64)
     if x.ndim != 2 or x.shape[1] != 1 or x.shape[0] < 16 or not np.all(np.isfinite(x)):
         return None
-    options = {"integrator": config.integrator, "substeps": config.substeps}
+    options = {"integrator": config.integrator, "substeps": config.substeps, **long_options(len(x))}
     if straight is None:
         straight = fit_trajectory(system, params, x, dt, start, **options)
     bent = fit_trajectory(system, params, x, dt, start, bend=True, **options)

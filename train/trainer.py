@@ -7,6 +7,7 @@ choice of runs in selection.py.
 from __future__ import annotations
 
 import contextlib
+import math
 from dataclasses import dataclass
 from typing import Callable, Mapping
 
@@ -30,7 +31,9 @@ from .result import Estimate, FitResult, RunRecord
 from .score import dominant_period, separation_score
 from .selection import select_runs, selection
 from .starts import CANDIDATES, data_starts
-from .trajectory import fit_trajectory
+from .direct import fit_path, fitted_path
+from .stretch import MIN_SEED, find_stretch
+from .trajectory import SEGMENT, fit_trajectory, long_options
 from .findings import Finding
 from .latent_checks import video_checks
 
@@ -84,21 +87,28 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
     prepared = observation.prepare(frames.to(device), config.encoder, fit_frames=n_train).in_order(system.states)
     gauges = observation.gauge_plan(gauge_plan(system))
     coefs = prepared.components[:n_train]  # the training frames' leading principal components
-    fit = _train_pass(prepared.inputs, plan, gauges, coefs, callback, progress)
     perspective = straight = None  # straight: one trajectory over the best run's state, for both checks
-    if observation.applies("perspective") and not fit.interrupted:
-        straight = fit_trajectory(system, params, fit.states[fit.best, :n_train], dt, fit.records[fit.best].final,
-                                  integrator=config.integrator, substeps=config.substeps)
-        perspective = perspective_check(system, params, fit.states[fit.best, :n_train], dt,
-                                        fit.records[fit.best].final, config, straight=straight)
-        if perspective is not None and perspective["apply"]:
-            reread = observation.reread(prepared, fit.states[fit.best], perspective, n_train)
-            perspective["apply"] = reread is not None
-            if reread is not None:
-                prepared, straight = reread, None
-                fit = _train_pass(prepared.inputs, plan, gauges, coefs, callback, progress)
+    extra_meta: dict = {}
+    if _measured_columns(prepared):  # the latent is measured: fit the path itself, no encoder to train
+        fit, perspective, straight, prepared, extra_meta = _measured_fit(prepared, plan, gauges)
+        first, last = extra_meta["stretch"]["start_frame"], extra_meta["stretch"]["end_frame"]
+    else:
+        first, last = 0, n_train
+        fit = _train_pass(prepared.inputs, plan, gauges, coefs, callback, progress)
+        if observation.applies("perspective") and not fit.interrupted:
+            straight = fit_trajectory(system, params, fit.states[fit.best, :n_train], dt, fit.records[fit.best].final,
+                                      integrator=config.integrator, substeps=config.substeps)
+            perspective = perspective_check(system, params, fit.states[fit.best, :n_train], dt,
+                                            fit.records[fit.best].final, config, straight=straight)
+            if perspective is not None and perspective["apply"]:
+                reread = observation.reread(prepared, fit.states[fit.best], perspective, n_train)
+                perspective["apply"] = reread is not None
+                if reread is not None:
+                    prepared, straight = reread, None
+                    fit = _train_pass(prepared.inputs, plan, gauges, coefs, callback, progress)
     records, latents, rollouts, states = fit.records, fit.latents, fit.rollouts, fit.states
     best, selected, interrupted = fit.best, fit.selected, fit.interrupted
+    span = slice(first, last)
     own_units = _own_units(system, analyse(system), observation)
     estimates = {}
     for name in system.learnable:
@@ -107,18 +117,18 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
         vals = np.array([records[i].value(name) for i in ([best] if name in own_units else selected)])
         unit = params.get(name, ParamSpec()).unit
         estimates[name] = Estimate(float(vals.mean()), float(vals.std()) if len(vals) > 1 else 0.0, len(vals), unit)
-    findings, numbers = video_checks(latents[best, :n_train], rollouts[best, :n_train], coefs, dt,
+    findings, numbers = video_checks(latents[best, span], rollouts[best, span], coefs[span], dt,
                                      records[best].score, oscillator=system.max_order >= 2,
                                      encoder=config.encoder, rank=prepared.rank, miss=records[best].miss,
                                      observation=observation)
     if prepared.caution:
         findings.append(Finding("ambiguous", prepared.caution))
     if observation.applies("trajectory") and not interrupted:
-        holds, numbers["whole_clip"] = whole_clip_check(system, params, states[best, :n_train], dt,
+        holds, numbers["whole_clip"] = whole_clip_check(system, params, states[best, span], dt,
                                                         records[best].final, config)
         if holds is not None:
             findings.append(holds)
-        slow, numbers["one_trajectory"] = one_trajectory_check(system, params, states[best, :n_train], dt,
+        slow, numbers["one_trajectory"] = one_trajectory_check(system, params, states[best, span], dt,
                                                                 records[best].final, config, fitted=straight)
         findings.extend(slow)
     if perspective is not None:
@@ -131,9 +141,116 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
         meta={"interrupted": interrupted, "plan": plan.to_dict(), "measured": observation.measured,
               "physical_units": observation.fixes_scale(), "subspace": prepared.note, "rank": prepared.rank,
               "gauge": {s: g.describe() for s, g in gauges.items()}, "own_units": sorted(own_units),
-              "left_out": fit.left_out, "measurement": prepared.drawing},
+              "left_out": fit.left_out, "measurement": prepared.drawing, **extra_meta},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},
     )
+
+
+def _measured_columns(prepared) -> bool:
+    """Does the observation give the state's measured columns (T, k, 1, 1), one per named state?"""
+    return prepared.states is not None and prepared.inputs.dim() == 4 and tuple(prepared.inputs.shape[2:]) == (1, 1)
+
+
+def _measured_latent(prepared, plan: FitPlan) -> np.ndarray:
+    """The measured columns as the latent (T, k): in the state's own units where the observation
+    gives them, else each column at the prior's mean and spread over the training frames, as the
+    encoder's latent would meet it (the gauge then maps it to the state)."""
+    x = prepared.inputs.reshape(prepared.inputs.shape[0], -1).double().cpu().numpy()
+    if plan.observation.physical_units:
+        return x
+    mean, std = plan.prior
+    part = x[:plan.n_train]
+    return mean + std * (x - part.mean(axis=0)) / np.maximum(part.std(axis=0), 1e-12)
+
+
+def _measured_fit(prepared, plan: FitPlan, gauges, stretch: tuple[int, int] | None = None):
+    """The measured path fitted directly (train/direct.py) on its stretch (train/stretch.py), with
+    the perspective re-reading where the observation has one: the _Pass the rest of fit_frames
+    reads (every run reads the same latent), the perspective numbers, the best run's trajectory
+    fit, the prepared columns as fitted, and the meta it adds ("stretch", "trajectory")."""
+    system, params, config, observation, dt = plan.system, plan.params, plan.config, plan.observation, plan.dt
+    latent = _measured_latent(prepared, plan)
+    T, k = latent.shape
+    options = {"integrator": config.integrator, "substeps": config.substeps}
+    if stretch is None:
+        stretch, record = _stretch(latent, plan, gauges)
+    else:
+        record = None
+    first, last = stretch
+    inits = restart_inits(system, params, config.restarts, config.seed, plan.init)
+    seeds = [config.seed * 1000 + i for i in range(len(inits))]
+    window = max(min(config.window, (last - first) // 2), 3)
+    with _threads(config.threads):
+        direct = fit_path(system, params, latent[first:last], dt, inits, seeds, window=window, gauge=gauges, **options)
+    records, best = direct.records, direct.best
+    for rec in records:
+        rec.origin = "user" if rec.index == 0 and plan.init else "equation file" if rec.index == 0 else "spread"
+    good = direct.fits[best]
+    if good is None:
+        errors = "; ".join(f"run {r.index + 1}: {r.error}" for r in records)
+        raise TrainingError(f"every run failed ({errors})")
+    for r in records:
+        r.miss = r.loss if math.isfinite(r.loss) else None
+    selected, left_out = selection(records, config.selection_factor)
+    best = min(selected, key=lambda i: records[i].loss)
+    latents = np.repeat(latent[None], len(records), axis=0)
+    rollouts = np.full_like(latents, np.nan)
+    states = np.empty_like(latents)
+    for r, fitted in zip(records, direct.fits):
+        if fitted is not None:
+            rollouts[r.index, first:last] = fitted_path(latent[first:last], fitted)
+        s = np.array([r.gauge.get(st, {}).get("scale", 1.0) for st in system.states])
+        b = np.array([r.gauge.get(st, {}).get("offset", 0.0) for st in system.states])
+        states[r.index] = latent * s + b
+    fit = _Pass(records, latents, rollouts, states, selected, best, False, left_out)
+    straight = direct.fits[best]
+    perspective = None
+    if observation.applies("perspective"):
+        perspective = perspective_check(system, params, states[best, first:last], dt, records[best].final, config,
+                                        straight=straight)
+        if perspective is not None and perspective["apply"]:
+            reread = observation.reread(prepared, states[best], perspective, plan.n_train)
+            perspective["apply"] = reread is not None
+            if reread is not None:
+                fit, _, straight, prepared, meta = _measured_fit(reread, plan, gauges, stretch)
+                meta["stretch"] = record or meta["stretch"]
+                return fit, perspective, straight, prepared, meta
+    record = record or _stretch_record(stretch, plan, "as asked", "the frames asked for")
+    meta = {"stretch": record, "direct": True,
+            "trajectory": {"mode": "segments" if last - first > 2 * SEGMENT else "whole", "frames": [first, last],
+                           "misfit": straight.misfit, "values": straight.values, "errors": straight.errors,
+                           "gauge": straight.gauge, "noise": record.get("noise")}}
+    return fit, perspective, straight, prepared, meta
+
+
+def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int], dict | None]:
+    """The stretch of the training frames the fit uses and its record (contract: meta["stretch"])."""
+    n = plan.n_train
+    if not plan.config.stretch or n < 3 * MIN_SEED:
+        return (0, n), None
+    system, params, config = plan.system, plan.params, plan.config
+    warm = dict(restart_inits(system, params, 1, config.seed, plan.init)[0])
+
+    def fit(a: int, b: int):
+        got = fit_trajectory(system, params, latent[a:b], plan.dt, warm, gauge=gauges, integrator=config.integrator,
+                             substeps=config.substeps, **long_options(b - a))
+        if got is None:
+            return None
+        warm.update(got.values)
+        return got.residuals
+    with _threads(config.threads):
+        found = find_stretch(latent[:n], plan.dt, fit)
+    record = found.to_dict(plan.dt)
+    record["noise"] = found.noise
+    if found.start == 0 and found.end == n:
+        record["reason"] = "one trajectory of the equation explains the whole clip"
+    return (found.start, found.end), record
+
+
+def _stretch_record(stretch: tuple[int, int], plan: FitPlan, source: str, reason: str) -> dict:
+    first, last = stretch
+    return {"start_frame": first, "end_frame": last, "start_s": first * plan.dt, "end_s": last * plan.dt,
+            "reason": reason, "source": source}
 
 
 def _own_units(system: OdeSystem, analysis, observation: ObservationModel) -> set[str]:

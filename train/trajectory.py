@@ -18,6 +18,13 @@ forward-mode), widened for residuals that hang together from frame to frame (by 
 for a lag-one correlation r; in windows, the error of each window's starting state makes its
 residuals hang together, so their errors are wide).
 
+segments (whole mode only): the one trajectory is rolled out as consecutive pieces of that many
+frames, each from starting frames of its own, tied to the end of the piece before by a stiff
+residual (multiple shooting): the same trajectory at the minimum, but each rollout is short, so a
+clip of thousands of frames costs what a few dozen do (the rollout is one Python step per frame).
+solver "lm" (Levenberg-Marquardt on the forward-mode Jacobian) takes a few dozen steps where
+L-BFGS takes hundreds; it suits the many starting frames of segments.
+
 bend: x is first read through a perspective (one-dimensional homography) about its middle m,
 x -> m + (x - m) / (1 + c (x - m)), with c fitted too (kept so that the pole stays outside the
 measured range) and returned as the constant PERSPECTIVE, in 1 / x's units; the misfit is then
@@ -35,6 +42,9 @@ ITERATIONS = 100
 MAX_WINDOWS = 128  # windows beyond this are thinned to evenly spaced ones: more say little new
 PERSPECTIVE = "perspective"  # the bend's c, among the values when bend=True
 POLE_MARGIN = 0.9
+JOIN_WEIGHT = 300.0  # a jump between two segments costs as much as JOIN_WEIGHT**2 frames' misfit of its size
+SOLVERS = ("lbfgs", "lm")
+SEGMENT = 60  # frames per shooting segment of a long path (long_options)
 
 
 @dataclass
@@ -54,7 +64,8 @@ class TrajectoryFit:
 def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Mapping[str, float], *,
                    integrator: str = "rk4", substeps: int = 1, windows: int | None = None, bend: bool = False,
                    max_windows: int = MAX_WINDOWS, robust: bool = False, iterations: int = ITERATIONS,
-                   gauge: Mapping | None = None) -> TrajectoryFit | None:
+                   gauge: Mapping | None = None, segments: int | None = None,
+                   solver: str = "lbfgs") -> TrajectoryFit | None:
     """The constants of the equation `system` that best follow x (T, k), from `start` (see the
     module docstring for windows and bend). robust: soft-L1 instead of squares on the residuals
     (a second pass, scaled by the first pass's robust spread), for a trajectory with outlying
@@ -67,16 +78,22 @@ def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Map
     from fitode.codegen import PhysicsBlock
     from fitode.errors import FitodeError
 
+    if solver not in SOLVERS:
+        raise ValueError(f"solver must be one of {', '.join(SOLVERS)}")
     xt = torch.as_tensor(np.asarray(x, dtype=np.float64)).reshape(len(x), -1)
     if not bool(torch.isfinite(xt).all()):
         return None
     try:
         block = PhysicsBlock(system, params, integrator=integrator, substeps=substeps, dtype=torch.float64)
         block.set_constants({n: float(start[n]) for n in system.learnable})
-        problem = _Problem(block, xt, dt, windows, bend, max_windows, gauge)
+        problem = _Problem(block, xt, dt, windows, bend, max_windows, gauge, segments)
         named = [(k, p) for k, p in block.named_parameters() if p.requires_grad] + problem.extra
         scales = problem.scales(named)
-        converged = _minimise(lambda values: torch.mean(problem.residual(values) ** 2), named, scales, iterations)
+        if solver == "lm":
+            converged = _levenberg(problem, named, scales, iterations)
+        else:
+            converged = _minimise(lambda values: torch.mean(problem.residual(values) ** 2), named, scales,
+                                  iterations)
         if robust:
             r = problem.residual(dict(named)).detach()
             spread = 1.4826 * float((r - r.median()).abs().median())
@@ -88,11 +105,18 @@ def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Map
         return None
 
 
+def long_options(n_frames: int) -> dict:
+    """Options of fit_trajectory for a path of n_frames: segments and Levenberg-Marquardt where it
+    is long (the rollout is one Python step per frame: a whole trajectory of a thousand frames per
+    L-BFGS step is what made a fit take minutes)."""
+    return {"segments": SEGMENT, "solver": "lm"}
+
+
 class _Problem:
     """The residual of one fit as a function of its free tensors, in units of each state's spread."""
 
     def __init__(self, block, xt, dt: float, windows: int | None, bend: bool, max_windows: int,
-                 gauge: Mapping | None = None):
+                 gauge: Mapping | None = None, segments: int | None = None):
         import torch
 
         from .latent_map import SCALE_START
@@ -117,8 +141,13 @@ class _Problem:
         if windows is None:
             if T < nc + 2:
                 raise ValueError("too few frames for one trajectory")
-            self.extra.append(("start", xt[:nc].clone().requires_grad_(True)))
             self.index = None
+            self.pieces = _pieces(T, nc, segments)
+            if self.pieces is None:
+                self.extra.append(("start", xt[:nc].clone().requires_grad_(True)))
+            else:
+                firsts, self.length, self.seg, self.off = self.pieces
+                self.extra.append(("start", xt[firsts[:, None] + np.arange(nc)[None, :]].clone().requires_grad_(True)))
         else:
             n = min(int(windows), T)
             if n < nc + 1:
@@ -127,6 +156,7 @@ class _Problem:
             if len(first) > max_windows:
                 first = np.unique(np.round(np.linspace(0, T - n, max_windows)).astype(int))
             self.index = torch.as_tensor(first[:, None] + np.arange(n)[None, :])
+            self.pieces = None
 
     def scales(self, named: list) -> list:
         """The size of a step in each free tensor that matters: the starting frames move on each
@@ -176,6 +206,8 @@ class _Problem:
         target = self.bent(swapped)
         own = {k: v for k, v in swapped.items() if k in self.models}
         s, b = self.gauge(swapped)
+        if self.index is None and self.pieces is not None:
+            return self.piecewise(swapped)[0][0] - target
         if self.index is None:
             state = functional_call(self.block, own, (swapped["start"][None] * s + b, target.shape[0], self.dt))[0]
             return (state - b) / s - target
@@ -184,9 +216,113 @@ class _Problem:
         state = functional_call(self.block, own, (xw[:, :nc] * s + b, xw.shape[1], self.dt))
         return (state[:, nc:] - b) / s - xw[:, nc:]
 
+    def piecewise(self, swapped, start=None):
+        """The segments' rollouts in x's units: the frames (C, T, k) each from its own segment, and
+        the jumps (C, S - 1, context, k) between a segment's end and the next one's starting frames,
+        for C sets of starting frames `start` (C, S, context, k) (default: the fitted ones, C = 1)."""
+        from torch.func import functional_call
+
+        own = {k: v for k, v in swapped.items() if k in self.models}
+        s, b = self.gauge(swapped)
+        start = swapped["start"][None] if start is None else start
+        nc, k = self.block.n_context, start.shape[-1]
+        head = (start * s + b).reshape(-1, nc, k)
+        state = (functional_call(self.block, own, (head, self.length, self.dt)) - b) / s
+        state = state.reshape(*start.shape[:2], self.length, k)
+        step = self.length - nc
+        return state[:, self.seg, self.off], state[:, :-1, step:step + nc] - start[:, 1:]
+
+    def pieces_residual(self, swapped, start=None):
+        """residual() for C sets of segment starts at once: (C, rows)."""
+        import torch
+        root = (1.0 / self.bent(swapped).var(dim=0).clamp_min(1e-24)).sqrt()
+        frames, joins = self.piecewise(swapped, start)
+        data = (frames - self.bent(swapped)) * root
+        return torch.cat([data.flatten(1), (JOIN_WEIGHT * joins * root).flatten(1)], dim=1)
+
+    def jacobian(self, residual, named: list, values, scale):
+        """d residual / d u at the flat values (value = start + scale * u), by forward differences;
+        with segments, the starts of every other segment are moved at once (a segment's frames and
+        joins depend on its own start and its neighbours' only), so the Jacobian of hundreds of
+        starting frames costs 2 * context * k rollouts of the segments, batched into one."""
+        import torch
+        sizes = [p.numel() for _, p in named]
+        parts = list(torch.split(values, sizes))
+        swapped = {k: part.view_as(p) for (k, p), part in zip(named, parts)}
+        r0 = residual(swapped)
+        cols = []
+        offset = 0
+        for (key, p), part, sc in zip(named, parts, torch.split(scale, sizes)):
+            if key == "start" and self.pieces is not None:
+                cols.append(self._start_columns(swapped, r0, sc.view_as(p)))
+            else:
+                for i in range(part.numel()):
+                    h = 1e-7 * float(sc[i])
+                    moved = dict(swapped)
+                    bumped = part.clone()
+                    bumped[i] += h
+                    moved[key] = bumped.view_as(p)
+                    cols.append(((residual(moved) - r0) / h * float(sc[i]))[:, None])
+            offset += part.numel()
+        return torch.cat(cols, dim=1), r0
+
+    def _start_columns(self, swapped, r0, scale):
+        import torch
+        start = swapped["start"]
+        n, nc, k = start.shape
+        T = self.xt.shape[0]
+        seg = self.seg.numpy()
+        jj = np.repeat(np.arange(n - 1), nc * k)
+        out = torch.zeros(r0.numel(), n * nc * k, dtype=r0.dtype)
+        copies, owners = [], []
+        for color in (0, 1):
+            mask = torch.as_tensor(np.arange(n) % 2 == color, dtype=start.dtype)[:, None]
+            own_data = np.repeat(np.where(seg % 2 == color, seg, -1), k)
+            own_join = np.where(jj % 2 == color, jj, jj + 1)
+            owners.append(np.concatenate([own_data, own_join]))
+            for i in range(nc):
+                for c in range(k):
+                    h = 1e-7 * scale[:, i, c]
+                    bumped = start.clone()
+                    bumped[:, i, c] += h * mask[:, 0]
+                    copies.append((color, i, c, bumped, h))
+        moved = self.pieces_residual(swapped, torch.stack([b for *_, b, _ in copies]))
+        rows = np.arange(r0.numel())
+        for (color, i, c, _, h), r in zip(copies, moved):
+            owner = owners[color]
+            ok = owner >= 0
+            cols = owner[ok] * nc * k + i * k + c
+            d = (r - r0)[ok] / h[owner[ok]] * scale[owner[ok], i, c]
+            out[rows[ok], cols] = d
+        return out
+
     def residual(self, swapped):
         root = (1.0 / self.bent(swapped).var(dim=0).clamp_min(1e-24)).sqrt()  # every state counts equally
-        return (self.difference(swapped) * root).flatten()
+        data = (self.difference(swapped) * root).flatten()
+        if self.index is not None or self.pieces is None:
+            return data
+        return self.pieces_residual(swapped)[0]
+
+    def misfit(self, swapped) -> float:
+        """RMS of the frames' residual (the joins between segments left out), in spreads."""
+        import torch
+        root = (1.0 / self.bent(swapped).var(dim=0).clamp_min(1e-24)).sqrt()
+        return float(torch.mean((self.difference(swapped) * root) ** 2)) ** 0.5
+
+
+def _pieces(T: int, nc: int, segments: int | None):
+    """Where each segment starts, the frames each rolls out, and for every frame its segment and
+    its place in it; None without segments. One segment is the whole trajectory, its Jacobian
+    batched (trajectory._Problem.jacobian)."""
+    import torch
+    if segments is None:
+        return None
+    m = max(int(segments), nc + 1)
+    n = max(1, -(-(T - nc) // m))  # the last segment starts at least `nc` frames before the end
+    firsts = np.arange(n) * m
+    t = np.arange(T)
+    seg = np.minimum(t // m, n - 1)
+    return firsts, m + nc, torch.as_tensor(seg), torch.as_tensor(t - firsts[seg])
 
 
 def _soft_l1(r, spread: float):
@@ -222,6 +358,62 @@ def _minimise(loss, named: list, scales: list, iterations: int) -> bool:
     return opt.state[opt._params[0]].get("n_iter", iterations) < iterations
 
 
+def _levenberg(problem: _Problem, named: list, scales: list, iterations: int) -> bool:
+    """Levenberg-Marquardt in the scaled steps u (value = start + scale * u) on the residual
+    vector, the Jacobian forward-mode; the named tensors end at the minimum. True where the cost
+    stopped falling before the iteration limit."""
+    import torch
+
+    sizes = [p.numel() for _, p in named]
+    origin = torch.cat([p.detach().flatten() for _, p in named])
+    scale = torch.cat([s.flatten() for s in scales])
+
+    def r(u):
+        v = origin + scale * u
+        return problem.residual({k: part.view_as(p) for (k, p), part in zip(named, torch.split(v, sizes))})
+    u = torch.zeros_like(origin)
+    with torch.no_grad():
+        res = r(u)
+    cost = float(res @ res)
+    if not math.isfinite(cost):
+        raise FloatingPointError("the starting point leaves the equation's domain")
+    # small damping: the starting frames are nearly collinear, and a damping of the diagonal's
+    # 1e-3 held the steps along them back for dozens of iterations on a linear problem
+    damping, converged = 1e-10, False
+    for _ in range(iterations):
+        with torch.no_grad():
+            jac = problem.jacobian(problem.residual, named, origin + scale * u, scale)[0]
+        a, g = jac.T @ jac, jac.T @ res
+        diag = a.diagonal().clamp_min(1e-12)
+        improved = False
+        for _ in range(12):
+            step = torch.linalg.solve(a + damping * torch.diag(diag), -g)
+            if float(-(g @ step)) <= 1e-8 * cost:  # the model promises nothing more: at the minimum
+                break
+            try:
+                with torch.no_grad():
+                    trial = r(u + step)
+                new = float(trial @ trial)
+            except (RuntimeError, FloatingPointError, ValueError):
+                new = math.inf
+            if math.isfinite(new) and new < cost:
+                improved = True
+                break
+            damping *= 10.0
+        if not improved:
+            converged = True
+            break
+        u, res, drop, cost = u + step, trial, cost - new, new
+        damping = max(damping / 10.0, 1e-15)
+        if drop <= 1e-7 * cost + 1e-300:  # a relative change this small moves no constant visibly
+            converged = True
+            break
+    with torch.no_grad():
+        for (_, p), part in zip(named, torch.split(origin + scale * u, sizes)):
+            p.copy_(part.view_as(p))
+    return converged
+
+
 def _summary(block, problem: _Problem, named: list, scales: list, converged: bool,
              robust: bool) -> TrajectoryFit | None:
     import torch
@@ -233,7 +425,8 @@ def _summary(block, problem: _Problem, named: list, scales: list, converged: boo
     def residual(v):
         return problem.residual({k: part.view_as(p) for (k, p), part in zip(named, torch.split(v, sizes))})
     r = residual(flat).detach()
-    jac = torch.autograd.functional.jacobian(residual, flat, vectorize=True, strategy="forward-mode")
+    with torch.no_grad():  # forward differences: forward-mode AD through the generated field takes a slow path
+        jac = problem.jacobian(problem.residual, named, flat, scale)[0] / scale
     if robust:  # the soft-L1 weights, as in iteratively reweighted least squares
         spread = 1.4826 * float((r - r.median()).abs().median()) or 1.0
         w = (1 + (r / spread) ** 2) ** -0.25
@@ -242,7 +435,7 @@ def _summary(block, problem: _Problem, named: list, scales: list, converged: boo
     lag = float((r[1:] @ r[:-1]) / (r @ r).clamp_min(1e-300)) if r.numel() > 2 else 0.0
     lag = min(max(lag, 0.0), 0.95)
     scaled = jac * scale  # in the scaled steps, where the normal matrix is well conditioned
-    cov = scale[:, None] * torch.linalg.pinv(scaled.T @ scaled) * scale[None, :] * float(r @ r) / dof \
+    cov = scale[:, None] * torch.linalg.pinv(scaled.T @ scaled, hermitian=True) * scale[None, :] * float(r @ r) / dof \
         * (1 + lag) / (1 - lag)
     swapped = dict(named)
     outputs = dict(block.constants())
@@ -256,10 +449,12 @@ def _summary(block, problem: _Problem, named: list, scales: list, converged: boo
         errors[name] = float((g @ cov @ g).clamp_min(0).sqrt())
     with torch.no_grad():
         difference = problem.difference(swapped).double().numpy()
-        misfit = float(torch.mean(problem.residual(swapped) ** 2)) ** 0.5
+        misfit = problem.misfit(swapped)
     if not all(math.isfinite(v) for v in [*values.values(), *errors.values(), misfit]):
         return None
     start = swapped["start"].detach().numpy().copy() if "start" in swapped else None
+    if start is not None and start.ndim == 3:  # segments: the first one's starting frames
+        start = start[0]
     gauge = None
     if problem.learn_scale or problem.learn_offset:
         s, b = (v.detach() for v in problem.gauge(swapped))

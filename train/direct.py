@@ -1,0 +1,118 @@
+"""A measured path fitted directly: the equation's constants from the trajectory fitter, no encoder.
+
+Where the observation measures the state (a position, a size, a brightness, an angle: one column
+per state, affine in it or equal to it), an encoder has nothing to learn but the affine map, and
+the trajectory fitter (trajectory.py) finds the constants, the map and the starting state at once,
+on one trajectory of the equation over the whole stretch: what acts slowly (light damping, drag)
+shows over all of it, which short training windows cannot see.
+
+Every restart of the plan starts from its own constants (trainer.restart_inits): first a fit of
+short windows of the path (multiple shooting from the measured frames: a wrong frequency or rate
+still lands near the right one, where one long trajectory from it would settle in a far basin);
+restarts whose windows agree share the one-trajectory fit that follows (long paths are rolled out
+in segments tied together, trajectory.py's segments). So the restart table and the assessment get
+runs as from the encoder's training, at a fraction of the time.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .history import History
+from .result import RunRecord
+from .trajectory import TrajectoryFit, fit_trajectory, long_options
+
+SCREEN_WINDOWS = 32  # windows the restarts' first fit looks at (evenly spread)
+SCREEN_ITERATIONS = 15
+AGREE = 0.02  # restarts whose window fits land this close (relative, every constant) share one full fit
+REFIT_WITHIN = 3.0  # a cluster is fitted in full when its windows misfit is within this factor of the best
+
+
+@dataclass
+class DirectFit:
+    """Every restart's record, the fit each one ended with, and the best."""
+
+    records: list[RunRecord]
+    fits: list[TrajectoryFit | None]
+    best: int
+
+
+def fit_path(system, params: Mapping, x: np.ndarray, dt: float, inits: Sequence[Mapping[str, float]],
+             seeds: Sequence[int], *, window: int, gauge: Mapping | None = None, integrator: str = "rk4",
+             substeps: int = 1) -> DirectFit:
+    """Every restart's constants on the measured path x (T, k), in x's units (gauge: the learned
+    scale and offset of each state, fit_trajectory's)."""
+    x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
+    opts = {"integrator": integrator, "substeps": substeps, "gauge": gauge}
+    screened, clock = [], []
+    for init in inits:
+        t0 = time.perf_counter()
+        win = fit_trajectory(system, params, x, dt, init, windows=window, max_windows=SCREEN_WINDOWS,
+                             iterations=SCREEN_ITERATIONS, solver="lm", **opts)
+        screened.append(win)
+        clock.append(time.perf_counter() - t0)
+    ok = [i for i, w in enumerate(screened) if w is not None]
+    best_screen = min((screened[i].misfit for i in ok), default=math.inf)
+    clusters: list[list[int]] = []
+    for i in sorted(ok, key=lambda j: screened[j].misfit):
+        for c in clusters:
+            if _agree(screened[c[0]].values, screened[i].values, system.learnable):
+                c.append(i)
+                break
+        else:
+            clusters.append([i])
+    fits: list[TrajectoryFit | None] = [None] * len(inits)
+    why: dict[int, str] = {}
+    for c in clusters:
+        lead = screened[c[0]]
+        if lead.misfit > REFIT_WITHIN * best_screen:
+            for i in c:
+                why[i] = (f"its window fit missed the path {lead.misfit / max(best_screen, 1e-300):.1f}x more than the "
+                          "best; not fitted further")
+            continue
+        t0 = time.perf_counter()
+        full = fit_trajectory(system, params, x, dt, lead.values, **long_options(len(x)), **opts)
+        spent = (time.perf_counter() - t0) / len(c)
+        for i in c:
+            fits[i] = full
+            clock[i] += spent
+            if full is None:
+                why[i] = "one trajectory from its windows' constants leaves the equation's domain"
+    records = [_record(i, seeds[i], inits[i], screened[i], fits[i], clock[i], why.get(i), system.learnable)
+               for i in range(len(inits))]
+    done = [i for i in range(len(inits)) if fits[i] is not None]
+    best = min(done, key=lambda i: fits[i].misfit) if done else 0
+    return DirectFit(records, fits, best)
+
+
+def _agree(a: Mapping[str, float], b: Mapping[str, float], names: Sequence[str]) -> bool:
+    return all(abs(a[n] - b[n]) <= AGREE * max(abs(a[n]), abs(b[n]), 1e-12) for n in names)
+
+
+def _record(index: int, seed: int, init: Mapping[str, float], screen: TrajectoryFit | None,
+            full: TrajectoryFit | None, wall: float, why: str | None, names: Sequence[str]) -> RunRecord:
+    """A restart as the restart table shows it: its start, the windows' constants (step 1), the
+    one trajectory's (step 2); the loss is the trajectory's mean squared misfit (in spreads)."""
+    history = History.for_constants(names)
+    history.append(0, math.nan, math.nan, 0.0, init)
+    if screen is not None:
+        history.append(1, screen.misfit ** 2, screen.misfit ** 2, 0.0, screen.values)
+    if full is None:
+        final = dict(screen.values) if screen is not None else dict(init)
+        return RunRecord(index=index, seed=seed, init=dict(init), final=final, loss=math.inf,
+                         steps=len(history) - 1, status="failed", error=why or "its window fit failed",
+                         wall_s=wall, history=history, stop_reason="non-finite")
+    history.append(2, full.misfit ** 2, full.misfit ** 2, 0.0, full.values)
+    final = {n: full.values[n] for n in names}
+    return RunRecord(index=index, seed=seed, init=dict(init), final=final, loss=full.misfit ** 2, steps=2,
+                     status="ok", converged=full.converged, wall_s=wall, history=history,
+                     stop_reason="converged" if full.converged else "max_steps", gauge=dict(full.gauge or {}))
+
+
+def fitted_path(x: np.ndarray, fit: TrajectoryFit) -> np.ndarray:
+    """The fitted trajectory in x's units, (T, k): the path plus the fit's residual."""
+    return np.asarray(x, dtype=np.float64).reshape(len(x), -1) + fit.residuals

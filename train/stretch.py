@@ -1,0 +1,152 @@
+"""The stretch of a measured path that one trajectory of the equation explains.
+
+A one-way clip is rarely one trajectory from its first frame to its last: a ball is held, then
+dropped, then bounces; a block rests, slides, rests. A fit over all of it averages laws that do not
+hold together (a block at rest obeys x'' = a with a = 0). The stretch is found, not typed:
+
+1. where it moves: frames at rest are those where the path stays within REST_SIGMAS noise over
+   REST_SECONDS; the candidates are the runs between rests (the whole path when it never rests);
+2. the noise: the robust spread of the third differences of the moving frames (motion that is
+   smooth over a few frames leaves them; white noise of spread s gives them a spread of sqrt(20) s);
+3. grown from seeds: short windows spread over each candidate are fitted as one trajectory, and
+   each is grown at both ends (into the rests too: a motion starts from rest), a step at a time
+   (halved on a miss), for as long as one trajectory still fits with a misfit within TOL of the noise on the new frames and on the whole;
+   the longest stretch wins.
+
+Why it ends is said in words: the clip ends, the thing stops (a rest follows), or the path leaves
+the trajectory (by how many times the noise).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+REST_SECONDS = 0.2
+REST_SIGMAS = 6.0
+TOL = 2.5  # new frames may miss the trajectory by this many noise spreads (RMS), the whole by TOL / 2
+SEEDS = 4
+MIN_SEED = 12
+
+
+@dataclass
+class Stretch:
+    """Frames [start, end) of the path (exclusive end) and why each end is where it is."""
+
+    start: int
+    end: int
+    why_start: str
+    why_end: str
+    noise: float
+
+    def to_dict(self, dt: float, offset: int = 0, source: str = "found") -> dict:
+        return {"start_frame": self.start + offset, "end_frame": self.end + offset,
+                "start_s": (self.start + offset) * dt, "end_s": (self.end + offset) * dt,
+                "reason": f"{self.why_start}; {self.why_end}", "source": source}
+
+
+def noise_level(x: np.ndarray) -> float:
+    """Robust spread of a path's frame-to-frame noise (per column, the largest), from third differences."""
+    x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
+    if len(x) < 8:
+        return float(np.std(x)) or 1e-12
+    d3 = np.diff(x, n=3, axis=0)
+    mad = np.median(np.abs(d3 - np.median(d3, axis=0)), axis=0)
+    return max(float((1.4826 * mad / math.sqrt(20.0)).max()), 1e-12 * max(float(np.ptp(x)), 1.0))
+
+
+def at_rest(x: np.ndarray, dt: float, noise: float) -> np.ndarray:
+    """(T,) True where the path stays within REST_SIGMAS noise spreads for REST_SECONDS around it."""
+    x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
+    w = max(3, int(round(REST_SECONDS / dt)))
+    T = len(x)
+    rest = np.zeros(T, dtype=bool)
+    if T < w:
+        return rest
+    span = np.stack([np.ptp(x[i:i + w], axis=0).max() for i in range(T - w + 1)])
+    still = span <= REST_SIGMAS * noise
+    for i in np.flatnonzero(still):
+        rest[i:i + w] = True
+    return rest
+
+
+def find_stretch(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray | None], *,
+                 min_len: int = MIN_SEED) -> Stretch:
+    """The longest stretch [start, end) of the path x (T, k) that one trajectory explains.
+    fit(a, b): the residual (b - a, k) of one trajectory fitted to frames [a, b), in x's units,
+    or None where it cannot be fitted (fit may warm-start from its previous call)."""
+    x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
+    T = len(x)
+    rest = at_rest(x, dt, noise_level(x))
+    # the noise of a moving thing is not that of a still one (a blob on the pixel grid, motion blur):
+    # the tolerance comes from the moving frames, where there are enough of them
+    noise = noise_level(x[~rest]) if int((~rest).sum()) >= 8 else noise_level(x)
+    runs = _runs(~rest) or [(0, T)]
+    best: tuple[int, int] | None = None
+    for a, b in sorted(runs, key=lambda r: r[0] - r[1]):
+        if b - a < min_len or (best is not None and b - a <= best[1] - best[0]):
+            continue
+        whole = _rms(fit(a, b))
+        if whole is not None and whole <= TOL / 2 * noise:  # the run is one trajectory: grow it into the rests
+            best = _grow(fit, a, b, 0, T, noise) or (a, b)
+            continue
+        seed = max(min_len, (b - a) // (2 * SEEDS))
+        for s in np.linspace(a, b - seed, min(SEEDS, max(1, (b - a) // seed))).astype(int):
+            if best is not None and best[0] <= s and s + seed <= best[1]:
+                continue
+            grown = _grow(fit, int(s), int(s) + seed, 0, T, noise)
+            if grown is not None and (best is None or grown[1] - grown[0] > best[1] - best[0]):
+                best = grown
+    if best is None:
+        best = (0, T)
+    return Stretch(best[0], best[1], _why_start(best[0], rest, dt), _why_end(best[1], T, rest, dt), noise)
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def _grow(fit, a: int, b: int, lo: int, hi: int, noise: float) -> tuple[int, int] | None:
+    """[a, b) grown within [lo, hi) while one trajectory still fits it: at each end, a bisection
+    for the longest extension whose added frames still fit (a dozen fits, not one per frame)."""
+    first = _rms(fit(a, b))
+    if first is None or first > TOL / 2 * noise:
+        return None
+    level = max(first, noise)
+    for side in ("end", "start"):
+        good, bad = 0, (hi - b if side == "end" else a - lo) + 1
+        ext = min(bad - 1, max(1, (b - a) // 2))  # first a step of half the stretch: most ends are near
+        while bad - good > 1:
+            na, nb = (a, b + ext) if side == "end" else (a - ext, b)
+            r = fit(na, nb)
+            new = None if r is None else r[:ext] if side == "start" else r[r.shape[0] - ext:]
+            if r is not None and _rms(r) <= TOL / 2 * level and _rms(new) <= TOL * level:
+                good = ext
+            else:
+                bad = ext
+            ext = (good + bad) // 2
+        a, b = (a, b + good) if side == "end" else (a - good, b)
+    return a, b
+
+
+def _rms(r: np.ndarray | None) -> float | None:
+    return None if r is None or r.size == 0 else float(np.sqrt(np.mean(np.square(r))))
+
+
+def _why_start(start: int, rest: np.ndarray, dt: float) -> str:
+    if start == 0:
+        return "from the clip's first frame"
+    if start > 0 and rest[start - 1]:
+        return f"the motion starts at {start * dt:.3g} s (at rest before)"
+    return f"before {start * dt:.3g} s the path does not follow one trajectory of the equation"
+
+
+def _why_end(end: int, T: int, rest: np.ndarray, dt: float) -> str:
+    if end >= T:
+        return "to the clip's last frame"
+    if rest[min(end, T - 1)] or rest[min(end + 1, T - 1)]:
+        return f"the motion stops at {end * dt:.3g} s"
+    return f"from {end * dt:.3g} s the path leaves one trajectory of the equation"
