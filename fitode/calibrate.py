@@ -319,7 +319,10 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     powers = scale_exponents(system)
     scales = {n: _scale(analysis, n) for n in system.learnable}
     mapped_best = {n: best[n] * f for n, f in factors.items() if f is not None}
-    fitted = _refit(system, params, x[: result.train_frames], result.dt, best, mapped_best, maps, options, seed)
+    # the frames the constants came from: the stretch one trajectory explains, where one was fitted
+    stretch = result.meta.get("stretch") or {}
+    first, last = int(stretch.get("start_frame", 0)), int(stretch.get("end_frame", result.train_frames))
+    fitted = _refit(system, params, x[first:last], result.dt, best, mapped_best, maps, options, seed)
     constants: dict[str, dict[str, Any]] = {}
     notes: list[str] = []
     if fitted is None:

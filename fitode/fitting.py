@@ -58,6 +58,8 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | None = None, system: 
     """
     from fitode import api
 
+    if (start is not None or end is not None) and "stretch" not in options:
+        options["stretch"] = False  # the user chose the frames: no stretch is looked for
     req = api.request(eq=eq, system=system, eq_file=eq_file, const=const, free=free, init=init, params=params,
                       prior=prior, train_fraction=train_fraction, observe=observe, calibrate=calibrate, **options)
     video = dict(fps=fps, start=start, end=end, roi=roi, size=size, color=color, stride=stride, mask=mask)

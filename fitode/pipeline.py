@@ -88,6 +88,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     say = log if log is not None else (lambda _line: None)
 
     # Cheap checks first: a typo in an option, the equation or the calibration must not cost a video decode.
+    if (read.start is not None or read.end is not None) and "stretch" not in fit:
+        fit = {**fit, "stretch": False}  # the user chose the frames: no stretch is looked for
     req = api.request(**fit)
     ode, spec = req.system, req.spec
     target = _check_out_dir(out_dir)

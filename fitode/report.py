@@ -264,10 +264,24 @@ def run_lines(result) -> list[str]:
                      f"{consts}  ({state})")
     if result.meta.get("subspace"):
         lines.insert(0, result.meta["subspace"])
+    if result.meta.get("stretch"):
+        lines.insert(1 if result.meta.get("subspace") else 0, stretch_line(result.meta["stretch"], len(result.time),
+                                                                          result.meta.get("input", {}).get("t0", 0.0)))
     wall = max((r.wall_s for r in result.runs), default=0.0)
+    how = "fitted directly to the measured path" if result.meta.get("direct") else "trained together"
     lines.append(f"           (* best run, + also averaged into the estimate; {len(result.runs)} restarts "
-                 f"trained together in {wall:.1f} s; score: does the latent tell the frames apart, 1 = fully)")
+                 f"{how} in {wall:.1f} s; score: does the latent tell the frames apart, 1 = fully)")
     return lines
+
+
+def stretch_line(stretch: Mapping[str, Any], n_frames: int, t0: float = 0.0) -> str:
+    """The stretch fitted (contract: meta["stretch"]) and what was cut, in one line."""
+    a, b = int(stretch["start_frame"]), int(stretch["end_frame"])
+    cut = [f"frames 0-{a - 1} before it" if a > 0 else "", f"frames {b}-{n_frames - 1} after it" if b < n_frames else ""]
+    cut = " and ".join(c for c in cut if c)
+    where = (f"stretch: frames {a}-{b - 1} ({t0 + stretch['start_s']:.3f} s to {t0 + stretch['end_s']:.3f} s of "
+             f"the clip), {stretch['source']}: {stretch['reason']}")
+    return where + (f"; cut {cut}" if cut else "; nothing cut")
 
 
 def format_table(report: Mapping[str, Any]) -> str:

@@ -28,6 +28,7 @@ from .trajectory import TrajectoryFit, fit_trajectory, long_options
 
 SCREEN_WINDOWS = 32  # windows the restarts' first fit looks at (evenly spread)
 SCREEN_ITERATIONS = 15
+SCREEN_FRAMES = 10  # the restarts' windows: short, so that a start far off (a drain 100x too fast) still rolls out
 AGREE = 0.02  # restarts whose window fits land this close (relative, every constant) share one full fit
 REFIT_WITHIN = 3.0  # a cluster is fitted in full when its windows misfit is within this factor of the best
 
@@ -51,9 +52,7 @@ def fit_path(system, params: Mapping, x: np.ndarray, dt: float, inits: Sequence[
     screened, clock = [], []
     for init in inits:
         t0 = time.perf_counter()
-        win = fit_trajectory(system, params, x, dt, init, windows=window, max_windows=SCREEN_WINDOWS,
-                             iterations=SCREEN_ITERATIONS, solver="lm", **opts)
-        screened.append(win)
+        screened.append(screen(system, params, x, dt, init, window, **opts))
         clock.append(time.perf_counter() - t0)
     ok = [i for i, w in enumerate(screened) if w is not None]
     best_screen = min((screened[i].misfit for i in ok), default=math.inf)
@@ -87,6 +86,15 @@ def fit_path(system, params: Mapping, x: np.ndarray, dt: float, inits: Sequence[
     done = [i for i in range(len(inits)) if fits[i] is not None]
     best = min(done, key=lambda i: fits[i].misfit) if done else 0
     return DirectFit(records, fits, best)
+
+
+def screen(system, params: Mapping, x: np.ndarray, dt: float, start: Mapping[str, float], window: int,
+           **options) -> TrajectoryFit | None:
+    """The constants of short windows of x (multiple shooting from the measured frames), from
+    `start`: a cheap first fit that lands near the right basin from far away."""
+    n = max(min(window, SCREEN_FRAMES), 4)
+    return fit_trajectory(system, params, x, dt, start, windows=n, max_windows=SCREEN_WINDOWS,
+                          iterations=SCREEN_ITERATIONS, solver="lm", **options)
 
 
 def _agree(a: Mapping[str, float], b: Mapping[str, float], names: Sequence[str]) -> bool:

@@ -31,7 +31,7 @@ from .result import Estimate, FitResult, RunRecord
 from .score import dominant_period, separation_score
 from .selection import select_runs, selection
 from .starts import CANDIDATES, data_starts
-from .direct import fit_path, fitted_path
+from .direct import fit_path, fitted_path, screen
 from .stretch import MIN_SEED, find_stretch
 from .trajectory import SEGMENT, fit_trajectory, long_options
 from .findings import Finding
@@ -230,6 +230,11 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int]
         return (0, n), None
     system, params, config = plan.system, plan.params, plan.config
     warm = dict(restart_inits(system, params, 1, config.seed, plan.init)[0])
+    with _threads(config.threads):
+        first = screen(system, params, latent[:n], plan.dt, warm, config.window, gauge=gauges,
+                       integrator=config.integrator, substeps=config.substeps)
+    if first is not None:
+        warm.update({k: first.values[k] for k in system.learnable})
 
     def fit(a: int, b: int):
         got = fit_trajectory(system, params, latent[a:b], plan.dt, warm, gauge=gauges, integrator=config.integrator,
