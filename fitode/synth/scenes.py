@@ -73,7 +73,7 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
         in pixels. jpeg_quality: 1..100 (100: no compression). curve: the transfer curve the
         camera stores, "srgb" (a phone, a webcam) or "linear" (a scientific camera, a rendering).
     params: scene-specific overrides (pendulum: zeta, theta0_deg; torricelli: h0;
-        sliding_block: mu, t0; led: I0; free_fall: h0, floor).
+        sliding_block: mu, t0, rest_before, rest_after (seconds still before and after); led: I0; free_fall: h0, floor).
     """
     if name not in SCENES:
         raise FitodeError(f"unknown scene '{name}': choose one of {', '.join(SCENES)}")
@@ -360,7 +360,10 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
     if a <= 0.05:
         raise FitodeError(f"at alpha = {alpha_deg:g} deg and mu = {mu:g} the block does not slide "
                           f"(a = {a:.3f} m/s^2)")
-    t0 = float(p.get("t0", rng.uniform(0.0, 0.1)))
+    # rest_before, rest_after (seconds): held still at the top, then stopped at the end (a slide a
+    # user films with its start and its stop in view, which the stretch finder cuts off)
+    rest_before, rest_after = float(p.get("rest_before", 0.0)), float(p.get("rest_after", 0.0))
+    t0 = float(p.get("t0", 0.0 if rest_before > 0 else rng.uniform(0.0, 0.1)))
     ramp, bl, bh, s0 = 1.0, 0.10, 0.06, 0.02
     t_max = np.sqrt(2 * (ramp - bl - s0) / a) - t0
     if t_max <= 2 * dt:
@@ -369,6 +372,9 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
     t = np.arange(n) * dt
     s = s0 + 0.5 * a * (t + t0) ** 2
     v = a * (t + t0)
+    before, after = int(round(rest_before / dt)), int(round(rest_after / dt))
+    s = np.concatenate([np.full(before, s[0]), s, np.full(after, s[-1])])
+    v = np.concatenate([np.zeros(before), v, np.zeros(after)])
 
     ppm = min(0.8 * w / (ramp * np.cos(alpha) + 0.15), 0.62 * h / (ramp * np.sin(alpha) + bh))
     floor_y = 0.86 * h
@@ -406,6 +412,7 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
     return _Scene(background=cv.image, draw=draw, latent=s[:, None], latent_names=("x",),
                   truth={"alpha": float(alpha), "mu": mu},
                   physical={"a": float(a), "alpha_deg": float(alpha_deg), "mu": mu, "g": G, "t0": t0,
+                            "rest_before_frames": before, "rest_after_frames": after,
                             "s0": s0, "ramp_length": ramp, "pixels_per_metre": float(ppm)},
                   state=np.stack([s, v], axis=1), state_names=("x", "x'"))
 
@@ -538,7 +545,7 @@ SCENES: dict[str, SceneInfo] = {i.name: i for i in (
               ("h0",), "h' = -k*sqrt(h)", "torricelli", _torricelli),
     SceneInfo("sliding_block", "alpha", (20.0, 25.0, 30.0), "deg",
               "a block sliding down a ramp inclined at alpha (mu = 0.21)", None,
-              ("mu", "t0"), "x'' = g*(sin(alpha) - mu*cos(alpha))", "sliding_block", _sliding_block),
+              ("mu", "t0", "rest_before", "rest_after"), "x'' = g*(sin(alpha) - mu*cos(alpha))", "sliding_block", _sliding_block),
     SceneInfo("led", "gamma", (2.3, 0.92, 0.46), "1/s",
               "an LED whose brightness decays as exp(-gamma t)", 3.0,
               ("I0",), "I' = -gamma*(I - c)", "led_decay", _led),
