@@ -29,6 +29,7 @@ from .trajectory import TrajectoryFit, fit_trajectory, long_options
 SCREEN_WINDOWS = 32  # windows the restarts' first fit looks at (evenly spread)
 SCREEN_ITERATIONS = 15
 SCREEN_FRAMES = 10  # the restarts' windows: short, so that a start far off (a drain 100x too fast) still rolls out
+SCALE_FLOOR = 0.01  # a learned scale the windows drive to zero: a small swing, where sin(x) = x to 1e-4
 AGREE = 0.02  # restarts whose window fits land this close (relative, every constant) share one full fit
 REFIT_WITHIN = 3.0  # a cluster is fitted in full when its windows misfit is within this factor of the best
 
@@ -74,7 +75,7 @@ def fit_path(system, params: Mapping, x: np.ndarray, dt: float, inits: Sequence[
                           "best; not fitted further")
             continue
         t0 = time.perf_counter()
-        full = fit_trajectory(system, params, x, dt, lead.values, **long_options(len(x)), **opts)
+        full = _full_fit(system, params, x, dt, lead, **long_options(len(x)), **opts)
         spent = (time.perf_counter() - t0) / len(c)
         for i in c:
             fits[i] = full
@@ -86,6 +87,32 @@ def fit_path(system, params: Mapping, x: np.ndarray, dt: float, inits: Sequence[
     done = [i for i in range(len(inits)) if fits[i] is not None]
     best = min(done, key=lambda i: fits[i].misfit) if done else 0
     return DirectFit(records, fits, best)
+
+
+def _full_fit(system, params: Mapping, x: np.ndarray, dt: float, lead: TrajectoryFit, *, gauge: Mapping | None,
+              **options) -> TrajectoryFit | None:
+    """One trajectory over the whole path from the windows' constants. A learned scale stays the
+    windows' (at least SCALE_START): over one long trajectory a scale the equation fixes only
+    through its nonlinearity (a pendulum's swing read as a position) trades against the
+    constants (a swing made 25 degrees to bend the period, L 2.4% off on the real bob clip),
+    where short windows keep to what the path shows. The fit's gauge is reported in x's units."""
+    from fitode.eqparse.gauge import StateGauge
+
+    learned = {st: g for st, g in (gauge or {}).items() if g is not None and g.scale_learned}
+    if not learned:
+        return fit_trajectory(system, params, x, dt, lead.values, gauge=gauge, **options)
+    scale = np.array([max(float((lead.gauge or {}).get(st, {}).get("scale", SCALE_FLOOR)), SCALE_FLOOR)
+                      if st in learned else 1.0 for st in system.states])
+    held = {st: (StateGauge(st, False, g.offset_learned, g.positive, g.reason) if st in learned else g)
+            for st, g in gauge.items()}
+    full = fit_trajectory(system, params, x * scale, dt, lead.values, gauge=held, **options)
+    if full is None:
+        return None
+    full.residuals = full.residuals / scale
+    full.gauge = {st: {"scale": float(scale[i]) * (full.gauge or {}).get(st, {}).get("scale", 1.0),
+                       "offset": (full.gauge or {}).get(st, {}).get("offset", 0.0)}
+                  for i, st in enumerate(system.states)}
+    return full
 
 
 def screen(system, params: Mapping, x: np.ndarray, dt: float, start: Mapping[str, float], window: int,

@@ -364,6 +364,8 @@ def _levenberg(problem: _Problem, named: list, scales: list, iterations: int) ->
     stopped falling before the iteration limit."""
     import torch
 
+    from fitode.errors import FitodeError
+
     sizes = [p.numel() for _, p in named]
     origin = torch.cat([p.detach().flatten() for _, p in named])
     scale = torch.cat([s.flatten() for s in scales])
@@ -386,7 +388,7 @@ def _levenberg(problem: _Problem, named: list, scales: list, iterations: int) ->
         a, g = jac.T @ jac, jac.T @ res
         diag = a.diagonal().clamp_min(1e-12)
         improved = False
-        for _ in range(12):
+        for _ in range(24):
             step = torch.linalg.solve(a + damping * torch.diag(diag), -g)
             if float(-(g @ step)) <= 1e-8 * cost:  # the model promises nothing more: at the minimum
                 break
@@ -394,7 +396,7 @@ def _levenberg(problem: _Problem, named: list, scales: list, iterations: int) ->
                 with torch.no_grad():
                     trial = r(u + step)
                 new = float(trial @ trial)
-            except (RuntimeError, FloatingPointError, ValueError):
+            except (FitodeError, RuntimeError, FloatingPointError, ValueError):  # the step left the domain
                 new = math.inf
             if math.isfinite(new) and new < cost:
                 improved = True
