@@ -8,8 +8,10 @@ hold together (a block at rest obeys x'' = a with a = 0). The stretch is found, 
    REST_SECONDS; the candidates are the runs between rests (the whole path when it never rests);
 2. the noise: the robust spread of the third differences of the moving frames (motion that is
    smooth over a few frames leaves them; white noise of spread s gives them a spread of sqrt(20) s);
-3. grown from seeds: short windows spread over each candidate are fitted as one trajectory, and
-   each is grown at both ends (into the rests too: a motion starts from rest), a step at a time
+3. the level one trajectory reaches locally: the median misfit of short windows (seeds) spread
+   over each candidate, or the noise where that is larger; a candidate whose one trajectory
+   stays within TOL / 2 of it is taken whole (and grown into the rests);
+4. otherwise grown from the seeds: each is grown at both ends (into the rests too: a motion starts from rest), a step at a time
    (halved on a miss), for as long as one trajectory still fits with a misfit within TOL of the noise on the new frames and on the whole;
    the longest stretch wins.
 
@@ -88,15 +90,21 @@ def find_stretch(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray 
     for a, b in sorted(runs, key=lambda r: r[0] - r[1]):
         if b - a < min_len or (best is not None and b - a <= best[1] - best[0]):
             continue
-        whole = _rms(fit(a, b))
-        if whole is not None and whole <= TOL / 2 * noise:  # the run is one trajectory: grow it into the rests
-            best = _grow(fit, a, b, 0, T, noise) or (a, b)
-            continue
         seed = max(min_len, (b - a) // (2 * SEEDS))
-        for s in np.linspace(a, b - seed, min(SEEDS, max(1, (b - a) // seed))).astype(int):
+        starts = np.linspace(a, b - seed, min(SEEDS, max(1, (b - a) // seed))).astype(int)
+        seeds = {int(s): _rms(fit(int(s), int(s) + seed)) for s in starts}
+        # what one trajectory achieves locally: a tracker's small systematic errors (the centroid of
+        # a blob, a swing read as a position) stand above the frame-to-frame noise everywhere alike
+        local = [v for v in seeds.values() if v is not None]
+        level = max(noise, float(np.median(local))) if local else noise
+        whole = _rms(fit(a, b))
+        if whole is not None and whole <= TOL / 2 * level:  # the run is one trajectory: grow it into the rests
+            best = _grow(fit, a, b, 0, T, level, whole) or (a, b)
+            continue
+        for s in starts:
             if best is not None and best[0] <= s and s + seed <= best[1]:
                 continue
-            grown = _grow(fit, int(s), int(s) + seed, 0, T, noise)
+            grown = _grow(fit, int(s), int(s) + seed, 0, T, level, seeds[int(s)])
             if grown is not None and (best is None or grown[1] - grown[0] > best[1] - best[0]):
                 best = grown
     if best is None:
@@ -109,10 +117,10 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
 
 
-def _grow(fit, a: int, b: int, lo: int, hi: int, noise: float) -> tuple[int, int] | None:
-    """[a, b) grown within [lo, hi) while one trajectory still fits it: at each end, a bisection
-    for the longest extension whose added frames still fit (a dozen fits, not one per frame)."""
-    first = _rms(fit(a, b))
+def _grow(fit, a: int, b: int, lo: int, hi: int, noise: float, first: float | None) -> tuple[int, int] | None:
+    """[a, b) (its fit's RMS `first`) grown within [lo, hi) while one trajectory still fits it: at
+    each end, a bisection for the longest extension whose added frames still fit (a dozen fits,
+    not one per frame)."""
     if first is None or first > TOL / 2 * noise:
         return None
     level = max(first, noise)
