@@ -75,7 +75,7 @@ def fit_path(system, params: Mapping, x: np.ndarray, dt: float, inits: Sequence[
                           "best; not fitted further")
             continue
         t0 = time.perf_counter()
-        full = _full_fit(system, params, x, dt, lead, **long_options(len(x)), **opts)
+        full = full_fit(system, params, x, dt, lead, **long_options(len(x)), **opts)
         spent = (time.perf_counter() - t0) / len(c)
         for i in c:
             fits[i] = full
@@ -89,7 +89,7 @@ def fit_path(system, params: Mapping, x: np.ndarray, dt: float, inits: Sequence[
     return DirectFit(records, fits, best)
 
 
-def _full_fit(system, params: Mapping, x: np.ndarray, dt: float, lead: TrajectoryFit, *, gauge: Mapping | None,
+def full_fit(system, params: Mapping, x: np.ndarray, dt: float, lead: TrajectoryFit, *, gauge: Mapping | None,
               **options) -> TrajectoryFit | None:
     """One trajectory over the whole path from the windows' constants. A learned scale stays the
     windows' (at least SCALE_START): over one long trajectory a scale the equation fixes only

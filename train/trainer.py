@@ -31,12 +31,13 @@ from .result import Estimate, FitResult, RunRecord
 from .score import dominant_period, separation_score
 from .selection import select_runs, selection
 from .starts import CANDIDATES, data_starts
-from .direct import fit_path, fitted_path, screen
+from .direct import full_fit, fit_path, fitted_path, screen
 from .stretch import MIN_SEED, find_stretch
 from .trajectory import SEGMENT, fit_trajectory, long_options
 from .findings import Finding
 from .latent_checks import video_checks
 
+STRETCH_ITERATIONS = 20  # Levenberg-Marquardt steps per fit of the stretch search (warm-started)
 DATA_STARTS = 2  # restarts that start from the data search (fitode.train.starts), when there are enough
 SCORE_EXCLUDE = 2  # frames either side left out of the score's neighbours (see fitode.train.score)
 
@@ -237,11 +238,18 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int]
         warm.update({k: first.values[k] for k in system.learnable})
 
     def fit(a: int, b: int):
-        got = fit_trajectory(system, params, latent[a:b], plan.dt, warm, gauge=gauges, integrator=config.integrator,
-                             substeps=config.substeps, **long_options(b - a))
+        # few iterations from the last fit's constants, a learned scale held at the windows': the search
+        # asks whether frames fit, many times, not for the last digit
+        got = (full_fit(system, params, latent[a:b], plan.dt, first, gauge=gauges, iterations=STRETCH_ITERATIONS,
+                        integrator=config.integrator, substeps=config.substeps, **long_options(b - a))
+               if first is not None else
+               fit_trajectory(system, params, latent[a:b], plan.dt, warm, gauge=gauges, iterations=STRETCH_ITERATIONS,
+                              integrator=config.integrator, substeps=config.substeps, **long_options(b - a)))
         if got is None:
             return None
-        warm.update(got.values)
+        warm.update({k: got.values[k] for k in system.learnable})
+        if first is not None:
+            first.values.update(warm)
         return got.residuals
     with _threads(config.threads):
         found = find_stretch(latent[:n], plan.dt, fit)
