@@ -217,8 +217,15 @@ def _measured_fit(prepared, plan: FitPlan, gauges, stretch: tuple[int, int] | No
                 meta["stretch"] = record or meta["stretch"]
                 return fit, perspective, straight, prepared, meta
     record = record or _stretch_record(stretch, plan, "as asked", "the frames asked for")
+    gauge = records[best].gauge
+    scale = np.array([gauge.get(st, {}).get("scale", 1.0) for st in system.states])
+    offset = np.array([gauge.get(st, {}).get("offset", 0.0) for st in system.states])
     meta = {"stretch": record, "direct": True,
-            "trajectory": {"mode": "segments" if last - first > 2 * SEGMENT else "whole", "frames": [first, last],
+            # the path the estimate follows, in the equation's state units, on the stretch only (the
+            # interval's bootstrap resamples it: train/interval.py), and the trajectory fitted to it
+            "trajectory": {"measured": fit.states[best, first:last].tolist(),
+                           "fitted": (fit.rollouts[best, first:last] * scale + offset).tolist(),
+                           "mode": "segments" if last - first > 2 * SEGMENT else "whole", "frames": [first, last],
                            "misfit": straight.misfit, "values": straight.values, "errors": straight.errors,
                            "gauge": straight.gauge, "noise": record.get("noise")}}
     return fit, perspective, straight, prepared, meta
