@@ -10,7 +10,7 @@ hold together (a block at rest obeys x'' = a with a = 0). The stretch is found, 
    smooth over a few frames leaves them; white noise of spread s gives them a spread of sqrt(20) s);
 3. the level one trajectory reaches locally: the median misfit of short windows (seeds) spread
    over each candidate, or the noise where that is larger; a candidate whose one trajectory
-   stays within TOL / 2 of it is taken whole (and grown into the rests);
+   stays within TOL of it is taken whole (and grown into the rests);
 4. otherwise grown from the seeds: each is grown at both ends (into the rests too: a motion starts from rest), a step at a time
    (halved on a miss), for as long as one trajectory still fits with a misfit within TOL of the noise on the new frames and on the whole;
    the longest stretch wins.
@@ -98,7 +98,7 @@ def find_stretch(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray 
         local = [v for v in seeds.values() if v is not None]
         level = max(noise, float(np.median(local))) if local else noise
         whole = _rms(fit(a, b))
-        if whole is not None and whole <= TOL / 2 * level:  # the run is one trajectory: grow it into the rests
+        if whole is not None and whole <= TOL * level:  # the run is one trajectory: grow it into the rests
             best = _grow(fit, a, b, 0, T, level, whole) or (a, b)
             continue
         for s in starts:

@@ -245,19 +245,16 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int]
         warm.update({k: first.values[k] for k in system.learnable})
 
     def fit(a: int, b: int):
-        # few iterations from the last fit's constants, a learned scale held at the windows': the search
+        # few iterations from the windows' constants, a learned scale held at theirs: the search
         # asks whether frames fit, many times, not for the last digit
         got = (full_fit(system, params, latent[a:b], plan.dt, first, gauge=gauges, iterations=STRETCH_ITERATIONS,
                         integrator=config.integrator, substeps=config.substeps, **long_options(b - a))
                if first is not None else
                fit_trajectory(system, params, latent[a:b], plan.dt, warm, gauge=gauges, iterations=STRETCH_ITERATIONS,
                               integrator=config.integrator, substeps=config.substeps, **long_options(b - a)))
-        if got is None:
-            return None
-        warm.update({k: got.values[k] for k in system.learnable})
-        if first is not None:
-            first.values.update(warm)
-        return got.residuals
+        # every fit starts from the same place: a short seed's constants (a decay's level, barely
+        # determined over a few frames) sent the next fit of the whole clip into a far basin
+        return None if got is None else got.residuals
     with _threads(config.threads):
         found = find_stretch(latent[:n], plan.dt, fit)
     record = found.to_dict(plan.dt)
