@@ -82,7 +82,8 @@ def fit_path(system, params: Mapping, x: np.ndarray, dt: float, inits: Sequence[
             clock[i] += spent
             if full is None:
                 why[i] = "one trajectory from its windows' constants leaves the equation's domain"
-    records = [_record(i, seeds[i], inits[i], screened[i], fits[i], clock[i], why.get(i), system.learnable)
+    records = [_record(i, seeds[i], inits[i], screened[i], fits[i], clock[i], why.get(i), system.learnable,
+                       system.states)
                for i in range(len(inits))]
     done = [i for i in range(len(inits)) if fits[i] is not None]
     best = min(done, key=lambda i: fits[i].misfit) if done else 0
@@ -129,7 +130,8 @@ def _agree(a: Mapping[str, float], b: Mapping[str, float], names: Sequence[str])
 
 
 def _record(index: int, seed: int, init: Mapping[str, float], screen: TrajectoryFit | None,
-            full: TrajectoryFit | None, wall: float, why: str | None, names: Sequence[str]) -> RunRecord:
+            full: TrajectoryFit | None, wall: float, why: str | None, names: Sequence[str],
+            states: Sequence[str]) -> RunRecord:
     """A restart as the restart table shows it: its start, the windows' constants (step 1), the
     one trajectory's (step 2); the loss is the trajectory's mean squared misfit (in spreads)."""
     history = History.for_constants(names)
@@ -145,7 +147,8 @@ def _record(index: int, seed: int, init: Mapping[str, float], screen: Trajectory
     final = {n: full.values[n] for n in names}
     return RunRecord(index=index, seed=seed, init=dict(init), final=final, loss=full.misfit ** 2, steps=2,
                      status="ok", converged=full.converged, wall_s=wall, history=history,
-                     stop_reason="converged" if full.converged else "max_steps", gauge=dict(full.gauge or {}))
+                     stop_reason="converged" if full.converged else "max_steps",
+                     gauge=dict(full.gauge or {st: {"scale": 1.0, "offset": 0.0} for st in states}))
 
 
 def fitted_path(x: np.ndarray, fit: TrajectoryFit) -> np.ndarray:

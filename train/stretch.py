@@ -5,7 +5,9 @@ dropped, then bounces; a block rests, slides, rests. A fit over all of it averag
 hold together (a block at rest obeys x'' = a with a = 0). The stretch is found, not typed:
 
 1. where it moves: frames at rest are those where the path stays within REST_SIGMAS noise over
-   REST_SECONDS; the candidates are the runs between rests (the whole path when it never rests);
+   REST_SECONDS; the candidates are the runs between rests (a path that never rests is taken
+   whole: the search is for a motion between rests, and on generated falls and two-state paths
+   it only trimmed frames that held the constants);
 2. the noise: the robust spread of the third differences of the moving frames (motion that is
    smooth over a few frames leaves them; white noise of spread s gives them a spread of sqrt(20) s);
 3. the level one trajectory reaches locally: the median misfit of short windows (seeds) spread
@@ -85,6 +87,8 @@ def find_stretch(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray 
     # the noise of a moving thing is not that of a still one (a blob on the pixel grid, motion blur):
     # the tolerance comes from the moving frames, where there are enough of them
     noise = noise_level(x[~rest]) if int((~rest).sum()) >= 8 else noise_level(x)
+    if not rest.any():  # it never rests: the clip is the motion (a search would only trim noise off it)
+        return Stretch(0, T, _why_start(0, rest, dt), _why_end(T, T, rest, dt), noise)
     runs = _runs(~rest) or [(0, T)]
     best: tuple[int, int] | None = None
     for a, b in sorted(runs, key=lambda r: r[0] - r[1]):
