@@ -90,7 +90,7 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
     coefs = prepared.components[:n_train]  # the training frames' leading principal components
     perspective = straight = None  # straight: one trajectory over the best run's state, for both checks
     extra_meta: dict = {}
-    if _measured_columns(prepared):  # the latent is measured: fit the path itself, no encoder to train
+    if _measured_columns(prepared) and observation.applies("direct"):  # measured: fit the path itself, no encoder
         fit, perspective, straight, prepared, extra_meta = _measured_fit(prepared, plan, gauges)
         first, last = extra_meta["stretch"]["start_frame"], extra_meta["stretch"]["end_frame"]
     else:

@@ -30,7 +30,7 @@ from .catalog import MODELS
 from .subspace import signal_subspace
 
 # the checks whose use depends on what the latent is (ObservationModel.applies)
-CHECKS = ("score", "quiet", "perspective", "trajectory", "rivals")
+CHECKS = ("score", "quiet", "perspective", "trajectory", "rivals", "direct")
 
 
 @dataclass
@@ -115,12 +115,13 @@ class ObservationModel:
         basin (a measured latent is the same for every restart: those left out fitted it worse).
         perspective: re-read a one-dimensional measured path through a camera's perspective
         (perspective.perspective_check). trajectory: the whole-clip, halves and one-trajectory checks
-        of a measured path (consistency.py)."""
+        of a measured path (consistency.py). direct: the measured path is fitted by one trajectory
+        itself (train/direct.py), every frame weighed alike, instead of training an encoder."""
         if check not in CHECKS:
             raise ValueError(f"unknown check {check!r}; one of {', '.join(CHECKS)}")
         free = not self.measured
         return {"score": free, "quiet": free, "rivals": free, "trajectory": self.measured,
-                "perspective": False}[check]
+                "perspective": False, "direct": self.measured}[check]
 
     def fixes_scale(self) -> bool:
         """Whether the latent fixes the state's units, so that a constant whose value depends on

@@ -62,3 +62,9 @@ class DistanceObservation(SizeObservation):
 
     def reading(self, radius: torch.Tensor) -> torch.Tensor:
         return 1.0 / radius
+
+    def applies(self, check: str) -> bool:
+        # the reciprocal of a shrinking radius grows noisier along the path: one trajectory that
+        # weighs every frame alike follows the noisy end (g +10.7% on the realistic fall, where the
+        # trained encoder gave +1.3%), so this reading keeps the encoder
+        return False if check == "direct" else super().applies(check)
