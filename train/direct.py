@@ -120,7 +120,9 @@ def screen(system, params: Mapping, x: np.ndarray, dt: float, start: Mapping[str
            **options) -> TrajectoryFit | None:
     """The constants of short windows of x (multiple shooting from the measured frames), from
     `start`: a cheap first fit that lands near the right basin from far away."""
-    n = max(min(window, SCREEN_FRAMES), 4)
+    # SCREEN_FRAMES whatever the training window: a 5-frame window is shorter than a second-order
+    # block's context (the real bouncing ball's 11 frames failed every restart)
+    n = min(SCREEN_FRAMES, len(x))
     return fit_trajectory(system, params, x, dt, start, windows=n, max_windows=SCREEN_WINDOWS,
                           iterations=SCREEN_ITERATIONS, solver="lm", **options)
 

@@ -31,6 +31,10 @@ LOOK_FRAMES = 256
 # THIN of the arc's length (a spring that bounces while it swings fills an area)
 SWING = 8.0
 THIN = 0.05
+# and it turns through at least SPAN radians about that centre (a swing of +-2.9 degrees): a
+# straight path bowed a few pixels by the lens or by stray frames fits a circle too, with a
+# centre far away (the real drop: 35567 pixels, 0.048 rad)
+SPAN = 0.1
 
 
 def named_model(name: str, light: str = "auto") -> ObservationModel:
@@ -137,7 +141,7 @@ class Look:
         """It moves back and forth along an arc that clearly bends about a centre."""
         c = self.circle
         return (self.moves and self.one_way < ONE_WAY and c is not None and c.significance >= SWING
-                and c.thinness <= THIN and c.radius_error < 0.5)
+                and c.thinness <= THIN and c.radius_error < 0.5 and c.span >= SPAN)
 
 
 @torch.no_grad()
@@ -168,7 +172,10 @@ def look(frames: torch.Tensor, track: Track | None = None) -> Look:
         # something moves, the track how its path runs and bends
         full = torch.from_numpy(track.filled())
         _, path = line_of_motion(full)
-        seen = Look(seen.travel, seen.size, one_way(path[::step]), gap, fit_circle(track.filled()))
+        # a track that jumps to something else in some frames (a hand, the floor) looks back and
+        # forth; the shrunk frames' centroids of the same clip may still see it run one way
+        seen = Look(seen.travel, seen.size, max(seen.one_way, one_way(path[::step])), gap,
+                    fit_circle(track.filled()))
     elif seen.moves:
         seen.circle = fit_circle(xy.double().cpu().numpy())
     return seen

@@ -18,6 +18,7 @@ AXES = {"x": "x", "y": "y", "h": "y", "z": "y"}  # a state named so reads that i
 # where it carries less, the name is taken for a habit (x'' = -k*x for a spring that bounces up and
 # down) and the line of motion is read, with a note
 AXIS_SHARE = 0.3
+TRACK_AGREE = 0.9  # the least correlation of the track's path with the shrunk frames' centroids' to read it
 
 
 def axis_of(state: str) -> str | None:
@@ -35,6 +36,19 @@ def _mended(note: str, mended: int, n_fit: int) -> tuple[str, str | None]:
             caution = (f"{mended} of {n_fit} frames had a centroid off the path of their neighbours and were read "
                        "from them: something else changes in the view as much as the object; give --roi around it")
     return note, caution
+
+
+def _agreement(track: torch.Tensor, coarse: torch.Tensor, fit_frames: int | None) -> float:
+    """How well the track's path (T, 2) runs as the shrunk frames' centroids (T, 2) do: the
+    absolute correlation of their readings along the coarse line of motion, over the fit frames
+    (both are affine in the same place where both follow the object)."""
+    n = track.shape[0] if fit_frames is None else int(fit_frames)
+    direction, along = line_of_motion(coarse.double(), n)
+    full = (track.double() - track[:n].double().mean(dim=0)) @ direction
+    pair = torch.stack([full[:n], along[:n]])
+    if float(pair.std(dim=1).min()) == 0:
+        return 0.0
+    return abs(float(torch.corrcoef(pair)[0, 1]))
 
 
 def _weak_axes(xy: torch.Tensor, axes: list[str]) -> list[int]:
@@ -74,13 +88,21 @@ class PositionObservation(MeasuredObservation):
 
     def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
         out = ObservationModel.prepare(self, frames, architecture, fit_frames)  # the components the checks score against
+        xy, pixels, unseen, _ = centroids(frames, fit_frames)
+        where, disagree = "", ""
         if self.track is not None and len(self.track) == frames.shape[0]:
-            # the reader's track, at the source's resolution
-            xy, pixels, unseen = torch.from_numpy(self.track.filled()).to(frames.device), self.track.area, self.track.unseen
-            where = "the reader's track at the source's resolution: "
-        else:
-            xy, pixels, unseen, _ = centroids(frames, fit_frames)
-            where = ""
+            # the reader's track, at the source's resolution, where it runs as the frames' own
+            # centroids do: a track that jumps to something else (a hand, the floor; the real
+            # drop) is worse than the shrunk frames' coarser but whole view of the change
+            full = torch.from_numpy(self.track.filled()).to(frames.device)
+            # where the shrunk frames lose the object (a 2-pixel ball) the track has no rival
+            agree = 1.0 if unseen > 0.1 * frames.shape[0] else _agreement(full, xy, fit_frames)
+            if agree >= TRACK_AGREE:
+                xy, pixels, unseen = full, self.track.area, self.track.unseen
+                where = "the reader's track at the source's resolution: "
+            else:
+                disagree = (f"; the reader's track at the source's resolution was set aside: it follows the "
+                            f"shrunk frames' centroids with a correlation of only {agree:.2f}")
         if unseen > 0.1 * frames.shape[0]:
             raise ConfigError(f"the position observation sees no change from the median frame in {unseen} of "
                               f"{frames.shape[0]} frames (the object stands still or leaves the view); "
@@ -100,6 +122,7 @@ class PositionObservation(MeasuredObservation):
         if where:  # the reader's track is in the source's pixels, with a frame it did not see left out
             prepared.drawing.update(space="source",
                                     track=[None if np.isnan(x) else [float(x), float(y)] for x, y in self.track.xy])
+        prepared.note += disagree
         return prepared
 
     def _line(self, xy: torch.Tensor, n_fit: int, components: np.ndarray, pixels: float, where: str,
