@@ -37,7 +37,8 @@ def test_a_learned_scale_frees_the_pendulum_from_the_priors_amplitude():
     # a 20-degree swing: with the latent at unit variance the sine would force a ~1.4 rad swing
     v = render_equation("pendulum", constants={"L": 0.5, "zeta": 0.05}, y0={"theta": math.radians(20)},
                         n_frames=150, dt=0.1, size=24, noise=0.01)
-    res = fitode.fit(v.frames, v.dt, system="pendulum", restarts=2, max_steps=800, progress=False)
+    # the free encoder's learned scale is what is tested (auto would measure the angle of this swing)
+    res = fitode.fit(v.frames, v.dt, system="pendulum", observe="any", restarts=2, max_steps=800, progress=False)
     assert abs(res.values["L"] - 0.5) / 0.5 < 0.03, res.values
     scale = res.runs[res.best].gauge["theta"]["scale"]
     swing = scale * np.abs(res.latent[:, 0]).max()
@@ -248,15 +249,21 @@ def test_a_decay_gets_the_brightness_observation_and_a_one_way_mlp_fit_is_not_tr
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("eq", ["I' = -gamma*I", "I' = -gamma*(I - c)"])
-def test_led_scene_with_default_flags(eq):
+@pytest.mark.parametrize("eq, light", [("I' = -gamma*I", None), ("I' = -gamma*(I - c)", "srgb")])
+def test_led_scene(eq, light):
     # a generated LED on a textured, noisy, JPEG-compressed background, typed literally; measured
-    # gamma 0.9181 and 0.9186 for 0.92 (the auto encoder is linear, the signal subspace rank 1)
+    # gamma 0.9181 and 0.9186 for 0.92 (the auto encoder is linear, the signal subspace rank 1).
+    # Its glow stored as sRGB changes as one pattern in either reading: with default flags the
+    # frames cannot tell the curve and the rate is not TRUSTED; told it (--light), it is.
     from fitode import synth
     v = synth.scene("led", gamma=0.92, size=(72, 128), fps=30, seed=1)
-    res = fitode.fit(v.frames, v.dt, eq=eq, progress=False)
+    res = fitode.fit(v.frames, v.dt, eq=eq, progress=False, **({"light": light} if light else {}))
     assert abs(res.values["gamma"] - 0.92) / 0.92 < 0.08, res.values
-    assert res.verdicts["gamma"]["verdict"] == "trusted", res.verdicts
+    verdict = res.verdicts["gamma"]
+    if light:
+        assert verdict["verdict"] == "trusted", res.verdicts
+    else:
+        assert verdict["verdict"] == "ambiguous" and "--light" in verdict["reason"], res.verdicts
 
 
 def test_a_signal_during_a_fit_waits_for_the_next_step():

@@ -76,6 +76,8 @@ def fit_path(system, params: Mapping, x: np.ndarray, dt: float, inits: Sequence[
             continue
         t0 = time.perf_counter()
         full = full_fit(system, params, x, dt, lead, **long_options(len(x)), **opts)
+        if full is not None and not all(math.isfinite(v) for v in (full.misfit, *full.values.values())):
+            full = None  # a path of noise: the fit ran off to no number
         spent = (time.perf_counter() - t0) / len(c)
         for i in c:
             fits[i] = full

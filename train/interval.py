@@ -36,6 +36,8 @@ from typing import Mapping
 
 import numpy as np
 
+from fitode.errors import FitodeError
+
 
 LEVEL = 0.95
 ITERATIONS = 48  # refits, all in one batch
@@ -318,8 +320,8 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
         stretched = batch.gauss_newton(centre, batch.roll(centre, dt * (1 + TIME_STEP)), refit_iterations)
         held_out = _held_out(system, params, x, dt, centre, integrator, substeps)
         bend = bends(batch, centre, fitted, refit_iterations) if learned else {}
-    except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError):
-        return None
+    except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError, FitodeError):
+        return None  # (FitodeError: a refit ran a constant off to no number, on a path of noise)
     names, m = batch.names, batch.m
     rho = correlation(resid)
     spread = np.std(draws[:, :m], axis=0, ddof=1) * block_bias(rho, block) * leverage(len(x), batch.p, rho)

@@ -90,10 +90,19 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
     coefs = prepared.components[:n_train]  # the training frames' leading principal components
     perspective = straight = None  # straight: one trajectory over the best run's state, for both checks
     extra_meta: dict = {}
+    direct_failed = None
     if _measured_columns(prepared) and observation.applies("direct"):  # measured: fit the path itself, no encoder
-        fit, perspective, straight, prepared, extra_meta = _measured_fit(prepared, plan, gauges)
+        try:
+            fit, perspective, straight, prepared, extra_meta = _measured_fit(prepared, plan, gauges)
+        except TrainingError as exc:
+            # no restart's trajectory followed the path (a learned scale that runs off, a path of
+            # noise): the encoder's training is the slower, older way to the same constants
+            direct_failed = str(exc)
+    if direct_failed is None and extra_meta:
         first, last = extra_meta["stretch"]["start_frame"], extra_meta["stretch"]["end_frame"]
     else:
+        if direct_failed is not None:
+            extra_meta = {"direct_failed": direct_failed}
         first, last = 0, n_train
         fit = _train_pass(prepared.inputs, plan, gauges, coefs, callback, progress)
         if observation.applies("perspective") and not fit.interrupted:

@@ -161,7 +161,10 @@ def _measure_one(frame: np.ndarray, background: np.ndarray, noise: float) -> tup
     box = change[y0:y1, x0:x1].astype(np.float32)
     if n > 2:  # only the chosen region: another may reach into its box
         inside = labels[y0 // k:(y1 + k - 1) // k, x0 // k:(x1 + k - 1) // k] == best
-        box *= np.repeat(np.repeat(inside, k, axis=0), k, axis=1)[:box.shape[0], :box.shape[1]]
+        grown = np.repeat(np.repeat(inside, k, axis=0), k, axis=1)[:box.shape[0], :box.shape[1]]
+        mask = np.zeros(box.shape, dtype=box.dtype)  # the last h % k rows (w % k columns) lie off the shrunk grid
+        mask[:grown.shape[0], :grown.shape[1]] = grown
+        box *= mask
     # the core's pixels and the ring of partly covered pixels around it, each weighted by its change
     # over the noise: a core cut at a share of the peak drops the partly covered edge pixels unevenly,
     # which moves a small object's centroid by a good part of a pixel
