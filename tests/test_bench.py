@@ -47,7 +47,9 @@ def test_paper_synthetic_quick(tmp_path, capsys):
     # every initialisation of a dataset is its own single-restart fit from its own start
     assert {tuple(sorted(r["init"].items())) for r in runs if r["variant"] == "kl"} == \
         {tuple(sorted(i.items())) for i in rec["settings"]["initialisations"][:2]}
-    assert all(r["steps"] == 20 and _finite(r["final"]["g0"], r["final"]["g1"], r["wall_s"]) for r in runs)
+    # the quick limit holds: an encoder trains its 20 steps, a measured path (auto: the motion's
+    # angle) is fitted directly in fewer
+    assert all(0 < r["steps"] <= 20 and _finite(r["final"]["g0"], r["final"]["g1"], r["wall_s"]) for r in runs)
     assert all(r["history"]["step"][-1] == r["steps"] for r in runs)
     # the report can be printed again from the JSON alone
     assert cli.main(["bench", "paper-synthetic", "--report", str(tmp_path / "paper_synthetic.json")]) == 0
