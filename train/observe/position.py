@@ -51,6 +51,19 @@ def _agreement(track: torch.Tensor, coarse: torch.Tensor, fit_frames: int | None
     return abs(float(torch.corrcoef(pair)[0, 1]))
 
 
+def _roughness(xy: torch.Tensor, fit_frames: int | None) -> float:
+    """How much a path (T, 2) jumps from frame to frame against how far it goes: the mean
+    absolute second difference along its line of motion over the path's range (a track that
+    jumps to a hand and back is rough; a smooth motion, fast or slow, is not)."""
+    n = xy.shape[0] if fit_frames is None else int(fit_frames)
+    _, along = line_of_motion(xy.double(), n)
+    along = along[:n]
+    if len(along) < 3:
+        return 0.0
+    jumps = (along[2:] - 2 * along[1:-1] + along[:-2]).abs().mean()
+    return float(jumps) / max(float(along.max() - along.min()), 1e-12)
+
+
 def _weak_axes(xy: torch.Tensor, axes: list[str]) -> list[int]:
     """The states whose named axis carries under AXIS_SHARE of the spread along the line of motion."""
     _, along = line_of_motion(xy)
@@ -97,12 +110,13 @@ class PositionObservation(MeasuredObservation):
             full = torch.from_numpy(self.track.filled()).to(frames.device)
             # where the shrunk frames lose the object (a 2-pixel ball) the track has no rival
             agree = 1.0 if unseen > 0.1 * frames.shape[0] else _agreement(full, xy, fit_frames)
-            if agree >= TRACK_AGREE:
+            if agree >= TRACK_AGREE or _roughness(full, fit_frames) <= 1.5 * _roughness(xy, fit_frames):
                 xy, pixels, unseen = full, self.track.area, self.track.unseen
                 where = "the reader's track at the source's resolution: "
             else:
                 disagree = (f"; the reader's track at the source's resolution was set aside: it follows the "
-                            f"shrunk frames' centroids with a correlation of only {agree:.2f}")
+                            f"shrunk frames' centroids with a correlation of only {agree:.2f} and jumps more "
+                            "from frame to frame")
         if unseen > 0.1 * frames.shape[0]:
             raise ConfigError(f"the position observation sees no change from the median frame in {unseen} of "
                               f"{frames.shape[0]} frames (the object stands still or leaves the view); "
