@@ -44,7 +44,7 @@ class DirectFit:
 
 
 def fit_path(system, params: Mapping, x: np.ndarray, dt: float, inits: Sequence[Mapping[str, float]],
-             seeds: Sequence[int], *, window: int, gauge: Mapping | None = None, integrator: str = "rk4",
+             seeds: Sequence[int], *, gauge: Mapping | None = None, integrator: str = "rk4",
              substeps: int = 1) -> DirectFit:
     """Every restart's constants on the measured path x (T, k), in x's units (gauge: the learned
     scale and offset of each state, fit_trajectory's)."""
@@ -53,7 +53,7 @@ def fit_path(system, params: Mapping, x: np.ndarray, dt: float, inits: Sequence[
     screened, clock = [], []
     for init in inits:
         t0 = time.perf_counter()
-        screened.append(screen(system, params, x, dt, init, window, **opts))
+        screened.append(screen(system, params, x, dt, init, **opts))
         clock.append(time.perf_counter() - t0)
     ok = [i for i, w in enumerate(screened) if w is not None]
     best_screen = min((screened[i].misfit for i in ok), default=math.inf)
@@ -118,12 +118,12 @@ def full_fit(system, params: Mapping, x: np.ndarray, dt: float, lead: Trajectory
     return full
 
 
-def screen(system, params: Mapping, x: np.ndarray, dt: float, start: Mapping[str, float], window: int,
+def screen(system, params: Mapping, x: np.ndarray, dt: float, start: Mapping[str, float],
            **options) -> TrajectoryFit | None:
     """The constants of short windows of x (multiple shooting from the measured frames), from
     `start`: a cheap first fit that lands near the right basin from far away."""
     # SCREEN_FRAMES whatever the training window: a 5-frame window is shorter than a second-order
-    # block's context (the real bouncing ball's 11 frames failed every restart)
+    # block's context (the real bouncing ball's 11 frames failed every restart when it took that)
     n = min(SCREEN_FRAMES, len(x))
     return fit_trajectory(system, params, x, dt, start, windows=n, max_windows=SCREEN_WINDOWS,
                           iterations=SCREEN_ITERATIONS, solver="lm", **options)

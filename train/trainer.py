@@ -189,9 +189,8 @@ def _measured_fit(prepared, plan: FitPlan, gauges, stretch: tuple[int, int] | No
     first, last = stretch
     inits = restart_inits(system, params, config.restarts, config.seed, plan.init)
     seeds = [config.seed * 1000 + i for i in range(len(inits))]
-    window = max(min(config.window, (last - first) // 2), 3)
     with _threads(config.threads):
-        direct = fit_path(system, params, latent[first:last], dt, inits, seeds, window=window, gauge=gauges, **options)
+        direct = fit_path(system, params, latent[first:last], dt, inits, seeds, gauge=gauges, **options)
     records, best = direct.records, direct.best
     for rec in records:
         rec.origin = "user" if rec.index == 0 and plan.init else "equation file" if rec.index == 0 else "spread"
@@ -248,7 +247,7 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int]
     system, params, config = plan.system, plan.params, plan.config
     warm = dict(restart_inits(system, params, 1, config.seed, plan.init)[0])
     with _threads(config.threads):
-        first = screen(system, params, latent[:n], plan.dt, warm, config.window, gauge=gauges,
+        first = screen(system, params, latent[:n], plan.dt, warm, gauge=gauges,
                        integrator=config.integrator, substeps=config.substeps)
     if first is not None:
         warm.update({k: first.values[k] for k in system.learnable})
