@@ -99,3 +99,15 @@ def test_fit_calibrates_behind_the_api_and_judges_the_calibrated_value():
     assert res.calibration["maps"]["d"]["n_points"] == 2
     raw = fitode.fit(frames, dt, eq="d'' = g", free=["g"], progress=False)
     assert raw.verdicts["g"]["verdict"] == "not trustworthy" and "calibrate" in raw.verdicts["g"]["reason"]
+
+
+def test_the_header_says_a_measured_path_is_fitted_directly_not_trained():
+    # a measured place is fitted by the equation's trajectory; the training line would promise
+    # restarts and steps that never run
+    plan = api.plan(api.request(eq="x'' = -w*x - c*x'", restarts=3, observe="position"),
+                    api.as_frames(_frames()), 0.1)
+    assert plan.observation.applies("direct")
+    first = plan.lines()[0]
+    assert first.startswith("fit: the measured path directly, 3 starting points") and "if that fails" in first
+    free = api.plan(api.request(eq="x'' = -w*x - c*x'", restarts=3, observe="any"), api.as_frames(_frames()), 0.1)
+    assert free.lines()[0].startswith("training: 3 restarts")

@@ -71,8 +71,14 @@ class FitPlan:
     def lines(self) -> list[str]:
         """The header's lines for what training will do and why."""
         c = self.config
-        lines = [f"training: {c.restarts} restart{'s' if c.restarts != 1 else ''}, up to {c.max_steps} steps, window "
-                 f"{c.window} frames, {c.integrator} integrator, {c.device}, seed {c.seed}"]
+        training = (f"{c.restarts} restart{'s' if c.restarts != 1 else ''}, up to {c.max_steps} steps, window "
+                    f"{c.window} frames, {c.integrator} integrator, {c.device}, seed {c.seed}")
+        if self.observation.applies("direct"):
+            # a measured path is fitted by the equation's trajectory; the trainer runs only if that fails
+            lines = [f"fit: the measured path directly, {c.restarts} starting point{'s' if c.restarts != 1 else ''} "
+                     f"(if that fails, an encoder is trained: {training})"]
+        else:
+            lines = [f"training: {training}"]
         lines += [f"{name}: {self.choices[name].reason}" for name in ("window", "observation")]
         for part in getattr(self.observation, "parts", {"": self.observation}).values():
             if getattr(part, "light_reason", None):
