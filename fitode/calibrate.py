@@ -30,6 +30,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from fitode.errors import FitodeError
+from fitode.names import finite_number
 
 
 class CalibrationError(FitodeError):
@@ -101,13 +102,8 @@ def parse_calibration(text: str, states: Sequence[str]) -> list[CalibrationPoint
 
 
 def _number(text: str, what: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise CalibrationError(f"--calibrate: {what} is not a number") from None
-    if not math.isfinite(v):
-        raise CalibrationError(f"--calibrate: {what} is not finite")
-    return v
+    return finite_number(text, f"--calibrate: {what} is not a number", f"--calibrate: {what} is not finite",
+                         CalibrationError)
 
 
 def check_times(points: Sequence[CalibrationPoint], t_first: float, t_last: float | None = None,

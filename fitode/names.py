@@ -38,16 +38,23 @@ def parse_assignments(items: Iterable[str] | str | None, flag: str = "--const") 
             raise FitodeError(f"{flag} expects NAME=VALUE, got {item!r}")
         if not _NAME.fullmatch(name):
             raise FitodeError(f"{flag}: {name!r} is not a valid name")
-        try:
-            number = float(value)
-        except ValueError:
-            raise FitodeError(f"{flag} {name}: {value!r} is not a number (write NAME=VALUE, e.g. g=9.81)") from None
-        if not math.isfinite(number):
-            raise FitodeError(f"{flag} {name}: the value must be finite, got {value}")
+        number = finite_number(value, f"{flag} {name}: {value!r} is not a number (write NAME=VALUE, e.g. g=9.81)",
+                               f"{flag} {name}: the value must be finite, got {value}")
         if name in out and out[name] != number:
             raise FitodeError(f"{flag}: {name} is given twice ({out[name]:g} and {number:g})")
         out[name] = number
     return out
+
+
+def finite_number(text: str, not_number: str, not_finite: str, error: type[FitodeError] = FitodeError) -> float:
+    """float(text), or `error` with the message that says what was wrong: not a number, or inf/nan."""
+    try:
+        number = float(text)
+    except ValueError:
+        raise error(not_number) from None
+    if not math.isfinite(number):
+        raise error(not_finite)
+    return number
 
 
 def parse_names(items: Iterable[str] | str | None, flag: str = "--free") -> list[str]:
