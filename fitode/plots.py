@@ -373,8 +373,10 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
         shown = view or _whole(extent, m)
         ax.set_xlim(shown[0], shown[2])
         ax.set_ylim(shown[3], shown[1])
-        where = "" if stretch is None else ("  (in the stretch)" if inside[i] else "  (outside the stretch)")
-        ax.set_title(f"t = {t[i]:.2f} s, frame {i}{where}", fontsize=8)
+        where = "" if stretch is None else ("(in the stretch)" if inside[i] else "(outside the stretch)")
+        # a narrow column (a tall view: a fall's strip) has no room for the title on one line
+        parts = [f"t = {t[i]:.2f} s", f"frame {i}"] + ([where] if where else [])
+        ax.set_title(("\n" if width / cols < 3.2 else "  ").join(parts), fontsize=8)
         ax.tick_params(labelsize=6)
         if k == 0:
             ax.set_ylabel("y (source pixels)", fontsize=7)
