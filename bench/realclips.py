@@ -10,7 +10,8 @@ puts fitode's estimate beside the tracker's.
 
 Pendulums (pendulum_bob_L062.mp4, pendulum_apple_damped.mov, pendulum_ornament_L170.mp4)
     Track: centroid of the bob's colour (bob: its blue lower half; apple and ornament: red), every
-    decoded frame, t = frame / container fps (the bob clip: only its 1844 decodable frames).
+    decoded frame, t = frame / the frames' stamped rate (the container's where its stamps are
+    irregular; the bob clip: only its 1844 decodable frames).
     The (x, y) track is projected onto its main direction of motion (first principal axis) and
     x(t) = A exp(-t/tau) cos(w t + phi) + c is fitted (scipy.optimize.least_squares, the decay
     rate 1/tau as the free parameter; start: w from the FFT peak of the zero-padded track, A, phi
@@ -156,13 +157,27 @@ def read_frames(path: str | Path) -> Iterator[np.ndarray]:
         cap.release()
 
 
-def container_fps(path: str | Path) -> float:
+def frame_rate(path: str | Path) -> float:
+    """The clip's real frame rate: from the frames' own timestamps where they run steadily (the
+    apple clip's header says 59.768 fps while every frame is stamped 1/59.94 s after the last),
+    else the header's rate (an AVI's stamps can run backwards)."""
     import cv2
 
     cap = cv2.VideoCapture(str(path))
     fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
     cap.release()
-    return fps
+    try:
+        import av
+
+        with av.open(str(path)) as box:
+            stream = box.streams.video[0]
+            stamps = np.array([f.time for f in box.decode(stream) if f.time is not None], dtype=float)
+    except Exception:  # no PyAV or an unreadable container: the header's rate
+        return fps
+    steps = np.diff(stamps)
+    if len(steps) < 10 or steps.min() <= 0 or steps.max() > 1.5 * steps.min():
+        return fps
+    return float(1.0 / np.polyfit(np.arange(len(stamps)), stamps, 1)[0])
 
 
 def colour_mask(frame_bgr: np.ndarray, ranges) -> np.ndarray:
@@ -337,7 +352,7 @@ def first_step(profile: np.ndarray, lo: int, hi: int, thresh: float) -> int:
 
 
 def measure_pendulum(path: Path, clip: Clip, frames: list[np.ndarray] | None = None) -> dict[str, Any]:
-    fps = clip.fps or container_fps(path)
+    fps = clip.fps or frame_rate(path)
     tr = track_colour(frames if frames is not None else read_frames(path), clip.hsv)
     n = len(tr["x"])
     t = np.arange(n) / fps
@@ -393,7 +408,7 @@ def measure_bottle(path: Path, clip: Clip, x0: int = 360, x1: int = 530, t_start
                    min_rows: int = 12) -> dict[str, Any]:
     import cv2
 
-    fps = clip.fps or container_fps(path)
+    fps = clip.fps or frame_rate(path)
     levels, bottoms, first = [], [], None
     for i, f in enumerate(read_frames(path)):
         if first is None and i / fps >= t_start:
@@ -439,7 +454,7 @@ def measure_bottle(path: Path, clip: Clip, x0: int = 360, x1: int = 530, t_start
 
 
 def measure_bounce(path: Path, clip: Clip, first: int = 63, last: int = 117) -> dict[str, Any]:
-    fps = clip.fps or container_fps(path)
+    fps = clip.fps or frame_rate(path)
     frames = list(read_frames(path))
     tr = track_colour(frames, clip.hsv, min_area=200)
     y = tr["y"]
