@@ -11,8 +11,8 @@ the header it prints before training is the plan itself.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Any, Iterable, Mapping
+from dataclasses import dataclass, replace
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 import torch
@@ -45,6 +45,7 @@ class FitRequest:
     observe_source: str = "as asked"
     calibration: tuple = ()
     spec: Any = None
+    equation: str | None = None  # the equation as the user typed it, where it is one of several candidates
 
 
 def request(*, eq: str | None = None, system: str | OdeSystem | None = None, eq_file: str | None = None,
@@ -52,11 +53,15 @@ def request(*, eq: str | None = None, system: str | OdeSystem | None = None, eq_
             init: Mapping[str, float] | None = None, params: Mapping[str, ParamSpec] | None = None,
             prior: tuple[float, float] | None = None, train_fraction: float = 1.0,
             observe: str | ObservationModel | None = None, calibrate: str | None = None,
-            **options) -> FitRequest:
+            candidate: int | None = None, **options) -> FitRequest:
     """Every check of a fit request that needs no frames, in one place (the API, the pipeline and
     batch all come through here): the equation, the training options, the prior, init's names,
-    train_fraction, the observation's name and the calibration's text."""
-    ode, spec_params, spec_prior, spec_observe, spec = _equation(eq, system, eq_file, const, free)
+    train_fraction, the observation's name and the calibration's text. candidate: which of several
+    candidate equations (a list as eq, or an equation file's alternatives: see requests)."""
+    if isinstance(eq, (list, tuple)) and len(eq) > 1 and candidate is None:
+        raise ConfigError(f"{len(eq)} equations: compare them with fitode.api.requests and fitode.compare "
+                          "(fitode.fit and `fitode VIDEO --eq A --eq B` do)")
+    ode, spec_params, spec_prior, spec_observe, spec = _equation(eq, system, eq_file, const, free, candidate)
     if params is not None:
         spec_params = {**spec_params, **params}
     if "prior" in options:
@@ -97,15 +102,17 @@ def plan(req: FitRequest, frames: torch.Tensor, dt: float, track=None) -> FitPla
 
 
 def execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_offset: float = 0.0,
-            callback: Callback | None = None, progress: bool = False, rate_std: float = 0.0) -> FitResult:
+            callback: Callback | None = None, progress: bool = False, rate_std: float = 0.0,
+            stretch: tuple[int, int] | None = None) -> FitResult:
     """Train the plan, calibrate when asked (not after an interruption: unfinished training gives
     no latent worth a scale), make every constant's interval and assess: the FitResult with its
     intervals, verdicts and warnings. rate_std: the relative uncertainty of the frame rate (0 for
-    a dt or --fps the user gave; fitode.train.interval.RATE_CONTAINER_STD for a container's)."""
+    a dt or --fps the user gave; fitode.train.interval.RATE_CONTAINER_STD for a container's).
+    stretch: the frames a measured path is fitted on, as fitode.train.trainer.fit_frames takes it."""
     from fitode.eqparse import analyse
     from fitode.train.assess import assess
 
-    result = fit_frames(frames, fit_plan, callback=callback, progress=progress)
+    result = fit_frames(frames, fit_plan, callback=callback, progress=progress, stretch=stretch)
     try:
         analysis = analyse(req.system)
     except Exception:  # noqa: BLE001 - the analysis is advice; sympy can fail on unusual equations
@@ -185,15 +192,48 @@ def as_frames(frames) -> torch.Tensor:
     return x.contiguous()
 
 
-def _equation(eq, system, eq_file, const, free):
+def requests(*, eq: str | Sequence[str] | None = None, system: str | OdeSystem | None = None,
+             eq_file: str | None = None, const: Mapping[str, float] | None = None, free: Iterable[str] = (),
+             **rest) -> list[FitRequest]:
+    """One FitRequest per candidate equation (request's keywords): each text of a list given as
+    eq, or an equation file's `equation` and `alternatives`; a single one where there is one
+    equation. const and free apply to each candidate where it has the name (each must be some
+    candidate's); init names the constants of the first candidate. Several candidates must have
+    as many states (matched in order) as they are fitted on one measured path."""
+    from fitode.eqfile import candidate_texts, constant_names
+    from fitode.names import parse_names
+
+    texts = [] if isinstance(system, OdeSystem) else candidate_texts(eq, eq_file, system)
+    if len(texts) <= 1:
+        one = eq[0] if isinstance(eq, (list, tuple)) and eq else eq
+        return [request(eq=one, system=system, eq_file=eq_file, const=const, free=free, **rest)]
+    const, free = dict(const or {}), parse_names(list(free or ()))
+    out = [request(eq=eq, system=system, eq_file=eq_file, const=const, free=free, candidate=i,
+                   **(rest if i == 0 else {k: v for k, v in rest.items() if k != "init"}))
+           for i in range(len(texts))]
+    names = set().union(*(set(r.system.learnable) | set(r.system.fixed) for r in out))
+    missing = sorted((set(const) | set(free)) - names)
+    if missing:
+        raise ConfigError(f"{', '.join(missing)}: no candidate equation has a constant of that name")
+    first = out[0].system
+    for text, r in zip(texts[1:], out[1:]):
+        if len(r.system.states) != len(first.states):
+            raise ConfigError(f"the candidates must describe the same measured states to be compared on one path: "
+                              f"{texts[0]!r} has {len(first.states)} ({', '.join(first.states)}), {text!r} has "
+                              f"{len(r.system.states)} ({', '.join(r.system.states)})")
+    return [replace(r, equation=t) for r, t in zip(out, texts)]
+
+
+def _equation(eq, system, eq_file, const, free, candidate=None):
     """The system, its parameters, prior, observation model (None: auto) and the equation file's
-    spec (None for text or an OdeSystem) from the equation given."""
+    spec (None for text or an OdeSystem) from the equation given (candidate: which of several)."""
     if isinstance(system, OdeSystem):
         if eq is not None or eq_file is not None:
             raise FitodeError("give the equation once: eq, system or eq_file")
         return system, {}, (0.0, 1.0), None, None
     from fitode.eqfile import resolve
-    ode, spec = resolve(eq=eq, eq_file=eq_file, system=system, const=dict(const or {}), free=tuple(free or ()))
+    ode, spec = resolve(eq=eq, eq_file=eq_file, system=system, const=dict(const or {}), free=tuple(free or ()),
+                        candidate=candidate)
     if spec is None:
         return ode, {}, (0.0, 1.0), None, None
     return ode, dict(spec.parameters), (spec.prior_mean, spec.prior_std), spec.observe, spec

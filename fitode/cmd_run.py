@@ -1,5 +1,8 @@
 """`fitode VIDEO (--eq TEXT | --eq-file PATH | --system NAME) [options]`: fit one video.
 
+--eq repeated (or an equation file with `alternatives`) compares the candidate equations
+(fitode.compare) and reports the preferred one, with a table of every candidate.
+
 Prints what it understood, trains, prints a table of the estimates, and writes an output folder
 (result.json, fit.json, estimates.csv, track.csv, latent.png, params.png, loss.png, frames.png,
 track.png). --json prints result.json on stdout and moves every human line to stderr, so stdout
@@ -18,7 +21,7 @@ from fitode.options import (add_equation_arguments, add_training_arguments, frac
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("video", metavar="VIDEO",
                    help="video file (mp4, avi, mov, ...), folder of images (needs --fps) or .npy array of frames")
-    eq, _ = add_equation_arguments(p, init=True)
+    eq, _ = add_equation_arguments(p, init=True, candidates=True)
     eq.add_argument("--prior", metavar="MEAN,STD", type=prior_value,
                     help="prior on the latent, N(MEAN, STD^2) (default 0,1 or the equation file's)")
     eq.add_argument("--calibrate", metavar="TEXT",

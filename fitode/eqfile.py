@@ -5,6 +5,7 @@ Format (every key but `name` and `equation` optional):
     name = "pendulum"
     description = "..."
     equation = "theta'' = -g/L*sin(theta) - zeta*theta'"
+    alternatives = ["theta'' = -g/L*theta - zeta*theta'"]   # candidates compared with `equation`
     stride = 2                      # suggested frame stride
     observe = "brightness"          # what the camera measures (fitode.train.observe.catalog), or one per
                                     # state: observe = { x = "position", y = "size" }
@@ -17,7 +18,11 @@ Format (every key but `name` and `equation` optional):
     mean = 0.0
     std = 1.0
 
-[constants] are passed to the parser as fixed values. A known constant (g) listed under
+[constants] are passed to the parser as fixed values. `alternatives` lists other equations for the same
+states: `fitode VIDEO --eq-file FILE` fits `equation` and each of them on the same measured path and
+prefers the one that predicts held-out stretches best (fitode.compare, docs/comparison.md); every
+other use of the file reads `equation` alone. The file's tables apply to each candidate where it
+has the name. A known constant (g) listed under
 [parameters] is made learnable (the free-fall file does this). Every name in either table must
 be a constant of the equation.
 """
@@ -35,7 +40,8 @@ from fitode.errors import FitodeError
 from fitode.names import parse_names
 
 _PACKAGE = "fitode.equations"
-_TOP_KEYS = {"name", "description", "equation", "constants", "parameters", "prior", "stride", "observe"}
+_TOP_KEYS = {"name", "description", "equation", "alternatives", "constants", "parameters", "prior", "stride",
+             "observe"}
 _PARAM_KEYS = {"init", "min", "max", "unit"}
 _PRIOR_KEYS = {"mean", "std"}
 
@@ -54,6 +60,22 @@ class EquationSpec:
     observe: str | dict[str, str] | None = None  # a model's name, or one per state
     description: str = ""
     path: str | None = None
+    alternatives: tuple[str, ...] = ()  # further candidate equations, compared with `equation`
+
+    @property
+    def candidates(self) -> list[str]:
+        """The candidate equations as written: `equation`, then the alternatives."""
+        return [self.equation, *self.alternatives]
+
+    def candidate(self, index: int) -> "EquationSpec":
+        """The file as if candidate `index` were its only equation: its tables kept where the
+        candidate has the name (a damping rate one candidate lacks is no error of the file)."""
+        from dataclasses import replace
+        text = self.candidates[index]
+        names = constant_names(text, [*self.constants, *self.parameters])
+        return replace(self, equation=text, alternatives=(),
+                       constants={k: v for k, v in self.constants.items() if k in names},
+                       parameters={k: v for k, v in self.parameters.items() if k in names})
 
     def parse(self, const: Mapping[str, float] | None = None, free: Iterable[str] = ()) -> OdeSystem:
         """The file's system, with the caller's fixed and freed constants over the file's."""
@@ -138,11 +160,16 @@ def spec_from_dict(data: Mapping, where: str, path: str | None = None) -> Equati
     except FitodeError as exc:
         raise FitodeError(f"{where}: {exc}") from None
 
+    alternatives = data.get("alternatives", [])
+    if not isinstance(alternatives, list) or not all(isinstance(a, str) and a.strip() for a in alternatives):
+        raise FitodeError(f"{where}: 'alternatives' must be a list of equations as text")
     spec = EquationSpec(name=data["name"].strip(), equation=data["equation"], constants=constants,
                         parameters=parameters, prior_mean=mean, prior_std=std, stride=stride, observe=observe,
-                        description=" ".join(description.split()), path=path)
+                        description=" ".join(description.split()), path=path, alternatives=tuple(alternatives))
     try:
         system = spec.parse()
+        for i in range(1, len(spec.candidates)):
+            spec.candidate(i).parse()
     except EquationError as exc:
         raise FitodeError(f"{where}: {exc}") from None
     unknown = [n for n in parameters if n not in system.learnable]
@@ -199,13 +226,19 @@ def load_system(name: str) -> EquationSpec:
 
 
 def resolve(eq: str | None = None, eq_file: str | None = None, system: str | None = None,
-            const: Mapping[str, float] | None = None,
-            free: Iterable[str] = ()) -> tuple[OdeSystem, EquationSpec | None]:
+            const: Mapping[str, float] | None = None, free: Iterable[str] = (),
+            candidate: int | None = None) -> tuple[OdeSystem, EquationSpec | None]:
     """Exactly one of equation text, equation file or shipped system name -> (OdeSystem, spec).
 
     A file's [constants] are fixed, its known constants listed under [parameters] are freed, then
     the caller's const (fix) and free (make learnable) override both. spec is None for text.
+    candidate: which of several candidate equations (candidate_texts: a list of texts as eq, or
+    a file's alternatives); the caller's const and free then apply where the candidate has the
+    name. None: the one equation (a file's `equation`).
     """
+    if isinstance(eq, (list, tuple)):
+        texts = list(eq)
+        eq = texts[candidate or 0] if texts else None
     given = [(flag, v) for flag, v in (("--eq", eq), ("--eq-file", eq_file), ("--system", system)) if v is not None]
     if len(given) != 1:
         shown = ", ".join(flag for flag, _ in given) if given else "none"
@@ -213,6 +246,41 @@ def resolve(eq: str | None = None, eq_file: str | None = None, system: str | Non
     const = dict(const or {})
     free = parse_names(list(free))
     if eq is not None:
+        if candidate is not None:
+            const, free = _present(eq, const, free, ())
         return parse(eq, fix=const, free=free), None
     spec = load_equation_file(eq_file) if eq_file is not None else load_system(system)
+    if candidate is not None:
+        if not 0 <= candidate < len(spec.candidates):
+            raise FitodeError(f"the equation file has {len(spec.candidates)} candidate equations, not {candidate + 1}")
+        spec = spec.candidate(candidate)
+        const, free = _present(spec.equation, const, free, [*spec.constants, *spec.parameters])
     return spec.parse(const, free), spec
+
+
+def _present(text: str, const: dict[str, float], free: list[str], declared) -> tuple[dict[str, float], list[str]]:
+    """const and free kept to the names the candidate equation has (the others are another candidate's)."""
+    names = constant_names(text, [*declared, *const, *free])
+    return {k: v for k, v in const.items() if k in names}, [n for n in free if n in names]
+
+
+def constant_names(text: str, declared: Iterable[str] = ()) -> set[str]:
+    """The names of the constants (learnable and known) of equation text; EquationError for bad text."""
+    system = parse(text, declared=tuple(declared))
+    return set(system.learnable) | set(system.fixed)
+
+
+def candidate_texts(eq: str | list[str] | tuple[str, ...] | None = None, eq_file: str | None = None,
+                    system: str | None = None) -> list[str]:
+    """The candidate equations as the user wrote them: each --eq given (repeatable), or an equation
+    file's `equation` and `alternatives`; one text where there is a single equation."""
+    if isinstance(eq, (list, tuple)):
+        if not eq:
+            raise FitodeError("give at least one equation")
+        return [str(e) for e in eq]
+    if eq is not None:
+        return [eq]
+    if eq_file is not None or system is not None:
+        spec = load_equation_file(eq_file) if eq_file is not None else load_system(system)
+        return spec.candidates
+    return []

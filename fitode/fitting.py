@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import os
-from typing import TYPE_CHECKING, Any, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
 from fitode.errors import ConfigError
 
@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 VIDEO_OPTIONS = ("fps", "start", "end", "roi", "size", "color", "stride", "mask")
 
 
-def fit(frames: Any, dt: float | None = None, *, eq: str | None = None, system: str | OdeSystem | None = None,
+def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None = None, system: str | OdeSystem | None = None,
         eq_file: str | None = None, const: Mapping[str, float] | None = None, free: Iterable[str] = (),
         init: Mapping[str, float] | None = None, params: Mapping[str, ParamSpec] | None = None,
         prior: tuple[float, float] | None = None, train_fraction: float = 1.0,
@@ -39,7 +39,12 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | None = None, system: 
     dt: seconds between consecutive frames; required for frames, taken from the clip for a path
         (given there, it must agree with the clip's stride / fps).
     eq | system | eq_file: the equation as text ("x'' = -g/L*sin(x) - z*x'"), a shipped system's
-        name (or an OdeSystem), or an equation file (TOML).
+        name (or an OdeSystem), or an equation file (TOML). Several candidate equations (a list
+        of texts as eq, or a file with `alternatives`) are compared (fitode.compare): each fitted
+        to the same measured path, ranked by blocked cross-validation along time; the result is
+        the preferred candidate's (the first's where the clip cannot tell them apart), and
+        result.meta["comparison"] holds every candidate's constants, intervals, held-out error
+        and verdict, "preferred" (the equation as given, or None) and "reason".
     const: fix constants {"g": 9.81}; free: known constants to learn (["g"]); init: starting
         values for every restart; prior: (mean, std) of the latent, overriding the file's.
     observe: "auto" (None), a model of fitode.train.observe.catalog ("position", "brightness",
@@ -60,8 +65,9 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | None = None, system: 
 
     if (start is not None or end is not None) and "stretch" not in options:
         options["stretch"] = False  # the user chose the frames: no stretch is looked for
-    req = api.request(eq=eq, system=system, eq_file=eq_file, const=const, free=free, init=init, params=params,
-                      prior=prior, train_fraction=train_fraction, observe=observe, calibrate=calibrate, **options)
+    reqs = api.requests(eq=eq, system=system, eq_file=eq_file, const=const, free=free, init=init, params=params,
+                        prior=prior, train_fraction=train_fraction, observe=observe, calibrate=calibrate, **options)
+    req = reqs[0]
     video = dict(fps=fps, start=start, end=end, roi=roi, size=size, color=color, stride=stride, mask=mask)
     clip = None
     if isinstance(frames, (str, os.PathLike)):
@@ -75,8 +81,16 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | None = None, system: 
     x = api.as_frames(frames)
     from fitode.pipeline import rate_std
     rate = rate_std(fps) if clip is not None else 0.0  # an array's dt is the user's
-    result = api.execute(req, api.plan(req, x, dt, track=None if clip is None else clip.track), x, time_offset=time_offset, callback=callback,
-                         progress=progress, rate_std=rate)
+    track = None if clip is None else clip.track
+    if len(reqs) > 1:
+        from fitode.compare import compare
+        comparison = compare(reqs, x, dt, track=track, time_offset=time_offset, callback=callback, progress=progress,
+                             rate_std=rate)
+        result = comparison.result
+        result.meta["comparison"] = comparison.to_dict()
+    else:
+        result = api.execute(req, api.plan(req, x, dt, track=track), x, time_offset=time_offset, callback=callback,
+                             progress=progress, rate_std=rate)
     if clip is not None:  # what was measured, in the video's pixels as `fitode VIDEO` writes it
         from fitode.pipeline import source_measurement
         source_measurement(result, clip)

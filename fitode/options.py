@@ -28,17 +28,24 @@ def positive_int(text: str) -> int:
 def add_equation_arguments(parser: argparse.ArgumentParser, *, title: str = "equation (exactly one)",
                            required: bool = True, eq_file: bool = True, const: bool = True,
                            free: bool = True, init: bool = False, many: bool = False,
-                           const_help: str | None = None):
+                           const_help: str | None = None, candidates: bool = False):
     """--eq / --eq-file / --system (mutually exclusive), --const NAME=VALUE, --free NAME, --init NAME=VALUE.
 
     many: --const takes several values after one flag (`--const k=4 c=0.1`, as `fitode synth`
     always has); otherwise each flag takes one item (repeatable or comma-separated), which keeps
     `fitode --const g=9.81 VIDEO` from swallowing the video. Returns (group, exclusive) so a verb
     can add its own flags beside them (check's --list goes into the exclusive group).
+    candidates: --eq is repeatable, each one a candidate equation (`fitode VIDEO --eq A --eq B`
+    compares them: fitode.compare); args.eq is then a list.
     """
     group = parser.add_argument_group(title)
     ex = group.add_mutually_exclusive_group(required=required)
-    ex.add_argument("--eq", metavar="TEXT", help="the equation, e.g. \"x'' = -g/L*sin(x) - z*x'\"")
+    if candidates:
+        ex.add_argument("--eq", metavar="TEXT", action="append",
+                        help="the equation, e.g. \"x'' = -g/L*sin(x) - z*x'\"; repeat it to compare candidate "
+                             "equations on held-out stretches of the clip (docs/comparison.md)")
+    else:
+        ex.add_argument("--eq", metavar="TEXT", help="the equation, e.g. \"x'' = -g/L*sin(x) - z*x'\"")
     if eq_file:
         ex.add_argument("--eq-file", metavar="PATH", help="an equation file (TOML)")
     ex.add_argument("--system", metavar="NAME", help=f"a shipped equation file by name: {_systems()}")

@@ -90,7 +90,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     # Cheap checks first: a typo in an option, the equation or the calibration must not cost a video decode.
     if (read.start is not None or read.end is not None) and "stretch" not in fit:
         fit = {**fit, "stretch": False}  # the user chose the frames: no stretch is looked for
-    req = api.request(**fit)
+    reqs = api.requests(**fit)  # one per candidate equation (several: a comparison, fitode.compare)
+    req = reqs[0]
     ode, spec = req.system, req.spec
     target = _check_out_dir(out_dir)
     analysis = rep.analysis_dict(rep.identifiability(ode))
@@ -111,9 +112,22 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     from fitode import plots
     _try_plot(plots.plot_frames, folder / "frames.png", clip.frames, clip.dt, t0=t0, plots_done=plots_done)
 
+    comparison = None
     try:
-        result = api.execute(req, plan, frames, time_offset=t0, callback=recorder, progress=progress,
-                             rate_std=rate_std(read.fps))
+        if len(reqs) > 1:
+            from fitode.compare import compare
+            comparison = compare(reqs, frames, clip.dt, track=clip.track, time_offset=t0, callback=recorder,
+                                 progress=progress, rate_std=rate_std(read.fps), log=say, first_plan=plan)
+            chosen = comparison.candidates[comparison.chosen]
+            result, req, plan = chosen.result, chosen.request, chosen.plan
+            if comparison.chosen:  # the report describes the candidate whose numbers it gives
+                ode, spec = req.system, req.spec
+                analysis = rep.analysis_dict(rep.identifiability(ode))
+                report = {**rep.base_report(video, clip, ode, spec, analysis, plan, req.train_fraction, folder,
+                                            options, t0), "created": report["created"]}
+        else:
+            result = api.execute(req, plan, frames, time_offset=t0, callback=recorder, progress=progress,
+                                 rate_std=rate_std(read.fps))
     except KeyboardInterrupt:
         _write_partial(report, recorder, folder, "incomplete", "interrupted (Ctrl-C) during training", plots_done)
         say(f"interrupted: partial results in {folder}")
@@ -132,6 +146,9 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     for line in (result.calibration or {}).get("lines", []):
         say(line)
     rep.complete_report(report, result, analysis, t0)
+    if comparison is not None:
+        report["comparison"] = comparison.to_dict()
+        result.meta["comparison"] = report["comparison"]
     if interrupted:
         stopped = [r for r in result.runs if r.status == "interrupted"]
         where = f"run {stopped[0].index + 1} at step {stopped[0].steps}" if stopped else "training"

@@ -313,6 +313,8 @@ def format_table(report: Mapping[str, Any]) -> str:
         for name, p in params.items():
             if p.get("verdict_reason"):
                 out.append(f"  {name}: {p['verdict']}: {p['verdict_reason']}")
+    if report.get("comparison"):
+        out += comparison_lines(report["comparison"])
     cal = report.get("calibration")
     if cal:
         out.append("calibration: " + "; ".join(f"{s} = {m['a']:.6g}*latent + {m['b']:.6g}"
@@ -320,6 +322,28 @@ def format_table(report: Mapping[str, Any]) -> str:
     out += [f"warning: {w}" for w in report.get("warnings") or []]
     out += [f"note: {n}" for n in report.get("notes") or []]
     return "\n".join(out)
+
+
+def comparison_lines(comparison: Mapping[str, Any]) -> list[str]:
+    """The candidates of a comparison (result.json's `comparison` block): each equation as typed,
+    its constants with the half width of their 95% intervals, its held-out error and verdict;
+    then the preferred equation, or that the clip cannot tell."""
+    rows = [("equation", "constants (95%)", "held-out", "verdict")]
+    for c in comparison["candidates"]:
+        consts = ", ".join(f"{n} {_num(p['value'])} {_interval(p)}" for n, p in c["parameters"].items()) or "-"
+        err = c.get("heldout_error")
+        rows.append((c["equation"], consts, "-" if err is None else f"{err:.4g}", c["verdict"]))
+    widths = [max(len(r[i]) for r in rows) for i in range(3)]
+    out = [f"comparison ({comparison['method']}):"]
+    out += ["  " + "  ".join([r[0].ljust(widths[0]), r[1].ljust(widths[1]), r[2].rjust(widths[2]), r[3]]).rstrip()
+            for r in rows]
+    out += [f"  failed: {c['equation']}: {c['error']}" for c in comparison["candidates"] if c.get("error")]
+    out += [f"  note: {n}" for n in comparison.get("notes", [])]
+    if comparison["preferred"] is not None:
+        out.append(f"preferred: {comparison['preferred']} ({comparison['reason']})")
+    else:
+        out.append(f"preferred: none: {comparison['reason']}; the estimates above are the first candidate's")
+    return out
 
 
 def _num(v: float | None) -> str:

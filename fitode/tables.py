@@ -23,7 +23,8 @@ from fitode.jsonio import to_jsonable, write_text
 # interval_low/high stay empty until estimates carry an interval
 ESTIMATE_COLUMNS = ("constant", "value", "interval_low", "interval_high", "std", "unit", "calibrated",
                     "verdict", "reason")
-BATCH_ESTIMATE_COLUMNS = ("job", "video") + ESTIMATE_COLUMNS
+# equation: the one fitted, as typed (of several candidates, the one the comparison reports: fitode.compare)
+BATCH_ESTIMATE_COLUMNS = ("job", "video", "equation") + ESTIMATE_COLUMNS
 
 
 def csv_text(header: Iterable[str], table: Iterable[Iterable[Any]]) -> str:
@@ -107,7 +108,7 @@ def write_run_tables(report: Mapping[str, Any], folder: Path) -> list[str]:
 
 def batch_estimates_csv(rows: Iterable[Any]) -> str:
     """One table for a whole batch: BATCH_ESTIMATE_COLUMNS, one row per job and constant (SummaryRow's)."""
-    table = [[r.name, r.video, *line] for r in rows for line in estimate_rows(r.parameters)]
+    table = [[r.name, r.video, r.details.get("equation"), *line] for r in rows for line in estimate_rows(r.parameters)]
     return csv_text(BATCH_ESTIMATE_COLUMNS, table)
 
 

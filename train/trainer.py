@@ -76,10 +76,12 @@ def restart_inits(system: OdeSystem, params: Mapping[str, ParamSpec], n: int, se
 
 
 def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None = None,
-               progress: bool = False) -> FitResult:
+               progress: bool = False, stretch: tuple[int, int] | None = None) -> FitResult:
     """Every restart of the plan on raw float frames (T, C, H, W), trained on the first
     plan.n_train; the estimates and the measurement's checks (result.checks, with their findings).
-    The verdicts are the assessment's (fitode.train.assess), made after any calibration."""
+    The verdicts are the assessment's (fitode.train.assess), made after any calibration.
+    stretch: the [first, last) frames a measured path is fitted on, found before (for another
+    candidate equation of a comparison, which must fit the same frames): no stretch is looked for."""
     system, params, config, observation, dt = plan.system, plan.params, plan.config, plan.observation, plan.dt
     n_total, n_train = plan.n_frames, plan.n_train
     if frames.shape[0] != n_total:
@@ -93,7 +95,7 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
     direct_failed = None
     if _measured_columns(prepared) and observation.applies("direct"):  # measured: fit the path itself, no encoder
         try:
-            fit, perspective, straight, prepared, extra_meta = _measured_fit(prepared, plan, gauges)
+            fit, perspective, straight, prepared, extra_meta = _measured_fit(prepared, plan, gauges, stretch)
         except TrainingError as exc:
             # no restart's trajectory followed the path (a learned scale that runs off, a path of
             # noise): the encoder's training is the slower, older way to the same constants

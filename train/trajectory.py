@@ -65,13 +65,16 @@ def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Map
                    integrator: str = "rk4", substeps: int = 1, windows: int | None = None, bend: bool = False,
                    max_windows: int = MAX_WINDOWS, robust: bool = False, iterations: int = ITERATIONS,
                    gauge: Mapping | None = None, segments: int | None = None,
-                   solver: str = "lbfgs") -> TrajectoryFit | None:
+                   solver: str = "lbfgs", keep: np.ndarray | None = None) -> TrajectoryFit | None:
     """The constants of the equation `system` that best follow x (T, k), from `start` (see the
     module docstring for windows and bend). robust: soft-L1 instead of squares on the residuals
     (a second pass, scaled by the first pass's robust spread), for a trajectory with outlying
     frames. gauge: {state: fitode.eqparse.gauge.StateGauge} where x is a latent whose scale or
     offset the equation fixes (the trainer's gauge: the state is s*x + b per column): the learned
     s and b are fitted too (starting as the trainer's do) and the misfit is measured in x's units.
+    keep (whole mode only): a boolean per frame; the frames it leaves out count for nothing, yet
+    the one trajectory runs through them, and the residuals cover them too (what it predicts
+    there: a held-out block of a cross-validation, fitode.train.crossval).
     None where it cannot be fitted (it leaves the equation's domain, too few frames)."""
     import torch
 
@@ -86,7 +89,7 @@ def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Map
     try:
         block = PhysicsBlock(system, params, integrator=integrator, substeps=substeps, dtype=torch.float64)
         block.set_constants({n: float(start[n]) for n in system.learnable})
-        problem = _Problem(block, xt, dt, windows, bend, max_windows, gauge, segments)
+        problem = _Problem(block, xt, dt, windows, bend, max_windows, gauge, segments, keep)
         named = [(k, p) for k, p in block.named_parameters() if p.requires_grad] + problem.extra
         scales = problem.scales(named)
         if solver == "lm":
@@ -116,7 +119,7 @@ class _Problem:
     """The residual of one fit as a function of its free tensors, in units of each state's spread."""
 
     def __init__(self, block, xt, dt: float, windows: int | None, bend: bool, max_windows: int,
-                 gauge: Mapping | None = None, segments: int | None = None):
+                 gauge: Mapping | None = None, segments: int | None = None, keep: np.ndarray | None = None):
         import torch
 
         from .latent_map import SCALE_START
@@ -138,6 +141,11 @@ class _Problem:
             b0 = [max(0.0, float(-(s * xt[:, i]).min() + 0.5 * s * xt[:, i].std())) if plans[i].positive else 0.0
                   for s, i in zip(s0, self.learn_offset)]
             self.extra.append(("gauge_offset", torch.tensor(b0, dtype=xt.dtype, requires_grad=True)))
+        self.keep = None
+        if keep is not None:
+            if windows is not None or len(keep) != T:
+                raise ValueError("keep is one flag per frame of a whole trajectory")
+            self.keep = torch.as_tensor(np.asarray(keep, dtype=np.float64))[:, None]
         if windows is None:
             if T < nc + 2:
                 raise ValueError("too few frames for one trajectory")
@@ -238,6 +246,8 @@ class _Problem:
         root = (1.0 / self.bent(swapped).var(dim=0).clamp_min(1e-24)).sqrt()
         frames, joins = self.piecewise(swapped, start)
         data = (frames - self.bent(swapped)) * root
+        if self.keep is not None:
+            data = data * self.keep
         return torch.cat([data.flatten(1), (JOIN_WEIGHT * joins * root).flatten(1)], dim=1)
 
     def jacobian(self, residual, named: list, values, scale):
@@ -298,7 +308,8 @@ class _Problem:
 
     def residual(self, swapped):
         root = (1.0 / self.bent(swapped).var(dim=0).clamp_min(1e-24)).sqrt()  # every state counts equally
-        data = (self.difference(swapped) * root).flatten()
+        data = self.difference(swapped) * root
+        data = (data if self.keep is None else data * self.keep).flatten()
         if self.index is not None or self.pieces is None:
             return data
         return self.pieces_residual(swapped)[0]
@@ -307,7 +318,10 @@ class _Problem:
         """RMS of the frames' residual (the joins between segments left out), in spreads."""
         import torch
         root = (1.0 / self.bent(swapped).var(dim=0).clamp_min(1e-24)).sqrt()
-        return float(torch.mean((self.difference(swapped) * root) ** 2)) ** 0.5
+        square = (self.difference(swapped) * root) ** 2
+        if self.keep is not None:
+            return float((square * self.keep).sum() / (self.keep.sum() * square.shape[1]).clamp_min(1)) ** 0.5
+        return float(torch.mean(square)) ** 0.5
 
 
 def _pieces(T: int, nc: int, segments: int | None):

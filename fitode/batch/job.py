@@ -131,13 +131,20 @@ def report_parameters(report: dict[str, Any]) -> dict[str, dict[str, float | Non
 
 
 def report_details(report: dict[str, Any]) -> dict[str, Any]:
-    """A few facts worth a summary column (the stride `auto` chose, dt), where the report has them."""
+    """A few facts worth a summary column (the stride `auto` chose, dt, the equation fitted and,
+    of several candidates, the one preferred), where the report has them."""
     out: dict[str, Any] = {}
     source = report.get("input") if isinstance(report.get("input"), dict) else report
     for key in ("fps", "stride", "dt", "frames_used"):
         v = source.get(key)
         if isinstance(v, (int, float)) and not isinstance(v, bool):
             out[key] = v
+    equation = report.get("equation")
+    if isinstance(equation, dict) and isinstance(equation.get("text"), str):
+        out["equation"] = equation["text"]  # of several candidates, the one reported (fitode.compare)
+    comparison = report.get("comparison")
+    if isinstance(comparison, dict):
+        out["preferred"] = comparison.get("preferred")
     runs = report.get("runs")
     if isinstance(runs, list):
         out["runs"] = len(runs)

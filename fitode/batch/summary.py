@@ -1,13 +1,14 @@
 """The batch's tables: one row per video (summary) and one per setting (aggregate).
 
-summary.csv columns: name, setting, video, status, error, wall_s, reused, folder, stride, dt
-(the stride the job used, which `auto` may choose per video, and the resulting time step), then per
+summary.csv columns: name, setting, video, status, error, wall_s, reused, folder, stride, dt, equation
+(the stride the job used, which `auto` may choose per video, the resulting time step, and the
+equation fitted: of several candidates, the one the comparison reports), then per
 constant NAME, NAME.std (spread over restarts), NAME.verdict (trusted / ambiguous / not
 trustworthy; its reason is in summary.json), NAME.true and NAME.rel_error where a true value is
 given. aggregate.csv: setting, jobs, complete, failed, then per constant NAME.mean,
 NAME.std (sample standard deviation over the setting's complete videos), NAME.n, NAME.true
 and NAME.rel_error (of the mean), as the paper's tables report them. estimates.csv: job, video,
-then the columns of a run's estimates.csv (fitode.tables), one row per job and constant.
+equation, then the columns of a run's estimates.csv (fitode.tables), one row per job and constant.
 
 Every file is written to a temporary name and renamed over the old one, so an interrupted
 batch never leaves a half-written summary.
@@ -74,13 +75,14 @@ def counts(rows: Iterable[SummaryRow]) -> dict[str, int]:
 def summary_table(rows: list[SummaryRow]) -> tuple[list[str], list[list[Any]]]:
     names = parameter_names(rows)
     has_truth = {n for r in rows for n in r.truth}
-    header = ["name", "setting", "video", "status", "error", "wall_s", "reused", "folder", "stride", "dt"]
+    header = ["name", "setting", "video", "status", "error", "wall_s", "reused", "folder", "stride", "dt", "equation"]
     for n in names:
         header += [n, f"{n}.std", f"{n}.verdict"] + ([f"{n}.true", f"{n}.rel_error"] if n in has_truth else [])
     table = []
     for r in rows:
         line: list[Any] = [r.name, r.setting, r.video, r.status, r.error or "",
-                           _round(r.wall_s, 3), r.reused, r.folder, r.details.get("stride"), r.details.get("dt")]
+                           _round(r.wall_s, 3), r.reused, r.folder, r.details.get("stride"), r.details.get("dt"),
+                           r.details.get("equation")]
         for n in names:
             p = r.parameters.get(n) or {}
             line += [p.get("value"), p.get("std"), p.get("verdict") or ""]

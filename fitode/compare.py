@@ -1,0 +1,208 @@
+"""Model comparison: several candidate equations fitted to one clip, ranked by how well each
+predicts stretches of the measured path it was not fitted on (fitode.train.crossval).
+
+The clip is read once. The first candidate is planned and fitted as a single equation would be
+(its observation model, the stretch of the clip one trajectory explains); every other candidate
+is then fitted on the same frames, read by the same observation model, on the same stretch. The
+blocked cross-validation of every candidate runs on the first one's measured path (each candidate
+reads it in its own gauge, as its fit did), so the held-out errors are in one unit.
+
+Only a measured path (position, angle, brightness, size) can be compared: a free latent is
+learned for each candidate in units of its own, so their held-out errors would measure
+different signals.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from fitode.errors import FitodeError
+
+FREE_LATENT = ("comparing equations needs a measured path (an observation of position, angle, brightness or size): "
+               "with a free latent each candidate learns a signal in units of its own, so their held-out errors "
+               "are not comparable; fit each equation alone, or give --observe")
+# the least correlation of two candidates' measured paths for them to be one signal: a perspective
+# re-reading (a bend of at most a few tens of percent at the ends) stays above it, another axis does not
+SAME_PATH = 0.95
+
+
+@dataclass
+class CandidateFit:
+    """One candidate equation of a comparison: its request, plan, fit and held-out errors."""
+
+    equation: str  # as the user typed it
+    request: Any  # fitode.api.FitRequest
+    plan: Any = None  # fitode.train.plan.FitPlan
+    result: Any = None  # fitode.train.result.FitResult; None where its fit failed
+    held: Any = None  # fitode.train.crossval.HeldOut
+    verdict: str = "failed"
+    error: str | None = None  # why its fit or its cross-validation failed
+
+    def to_dict(self) -> dict[str, Any]:
+        params = {}
+        if self.result is not None:
+            for name, est in self.result.parameters.items():
+                trust = self.result.verdicts.get(name, {}).get("verdict")
+                params[name] = {"value": est.value, "interval": est.interval, "unit": est.unit, "trust": trust}
+        return {"equation": self.equation, "parameters": params,
+                "heldout_error": None if self.held is None or not math.isfinite(self.held.error) else self.held.error,
+                "heldout": None if self.held is None else self.held.to_dict(),
+                "verdict": self.verdict, "error": self.error}
+
+
+@dataclass
+class Comparison:
+    """The candidates, the preferred one (None: the clip cannot tell) and the one reported."""
+
+    candidates: list[CandidateFit]
+    preferred: int | None
+    reason: str
+    stretch: tuple[int, int]
+    blocks: int
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def chosen(self) -> int:
+        """The candidate whose fit is reported: the preferred one, else the first (the clip cannot tell)."""
+        return self.preferred if self.preferred is not None else 0
+
+    @property
+    def result(self):
+        return self.candidates[self.chosen].result
+
+    def to_dict(self) -> dict[str, Any]:
+        """result.json's `comparison` block."""
+        reported = self.candidates[self.chosen].equation
+        why = ("the preferred candidate's" if self.preferred is not None
+               else "the first candidate's: this clip cannot tell the candidates apart")
+        return {"candidates": [c.to_dict() for c in self.candidates],
+                "preferred": None if self.preferred is None else self.candidates[self.preferred].equation,
+                "reason": self.reason, "reported": reported, "parameters_are": why,
+                "method": f"blocked cross-validation along time: {self.blocks} contiguous blocks of frames "
+                          f"{self.stretch[0]}-{self.stretch[1]}, each predicted by one trajectory fitted to the rest; "
+                          "error in spreads of the measured path",
+                "stretch": list(self.stretch), "blocks": self.blocks, "notes": list(self.notes)}
+
+
+def compare(requests: Sequence, frames, dt: float, *, track=None, time_offset: float = 0.0, callback=None,
+            progress: bool = False, rate_std: float = 0.0, blocks: int | None = None,
+            log: Callable[[str], None] | None = None, first_plan=None) -> Comparison:
+    """Fit every candidate (fitode.api.requests: one FitRequest per equation, `equation` set as
+    typed by requests' caller) on the frames (T, C, H, W) dt apart, cross-validate each along
+    time and rank them (module docstring). first_plan: the first candidate's plan where the
+    caller made it already. FitodeError (one line) where the comparison cannot be made."""
+    from fitode import api
+    from fitode.train.crossval import BLOCKS, rank
+
+    say = log or (lambda _line: None)
+    blocks = BLOCKS if blocks is None else int(blocks)
+    cands = [CandidateFit(equation=getattr(r, "equation", None) or r.system.text, request=r) for r in requests]
+    first = cands[0]
+    first.plan = first_plan or api.plan(first.request, frames, dt, track=track)
+    if not first.plan.observation.measured:
+        raise FitodeError(FREE_LATENT)
+    options = dict(time_offset=time_offset, callback=callback, progress=progress, rate_std=rate_std)
+    say(f"candidate 1 of {len(cands)}: {first.equation}")
+    first.result = api.execute(first.request, first.plan, frames, **options)
+    if not first.result.meta.get("direct"):
+        why = first.result.meta.get("direct_failed")
+        raise FitodeError(FREE_LATENT + (f" (the measured path could not be fitted: {why})" if why else ""))
+    st = first.result.meta["stretch"]
+    stretch = (int(st["start_frame"]), int(st["end_frame"]))
+    for i, c in enumerate(cands[1:], start=2):
+        say(f"candidate {i} of {len(cands)}: {c.equation}")
+        try:
+            observe = _observe_like(first.plan.observation, first.request.system.states, c.request.system.states)
+            req = replace(c.request, observe=observe, observe_source="the first candidate's, for the comparison")
+            c.plan = api.plan(req, frames, dt, track=track)
+            c.result = api.execute(req, c.plan, frames, stretch=stretch, **options)
+            c.request = req
+        except FitodeError as exc:
+            c.error = str(exc)
+            continue
+        if not c.result.meta.get("direct"):
+            c.error, c.result = "its measured path could not be fitted directly", None
+            continue
+        c.result.meta["stretch"] = {**st, "source": "the first candidate's, for the comparison"}
+    base = np.asarray(first.result.latent, dtype=np.float64)[stretch[0]:stretch[1]]
+    notes = []
+    for c in cands:
+        if c.result is None:
+            continue
+        x = _same_signal(base, first.plan, c.plan)
+        own = _same_signal(np.asarray(c.result.latent, dtype=np.float64)[stretch[0]:stretch[1]], c.plan, c.plan)
+        if _correlation(x, own) < SAME_PATH:
+            raise FitodeError(f"the candidates read different paths from the clip ({first.equation!r} and "
+                              f"{c.equation!r}: the states' names pick what is measured, x across and y up); "
+                              "name the states alike")
+        if _bent(c.result) != _bent(first.result):
+            bent = c if _bent(c.result) else first
+            notes.append(f"{bent.equation!r}: its own fit read the path through a perspective "
+                         f"({bent.result.checks['perspective']['bend_at_ends']:.0%} at the ends), which the other "
+                         "candidates' did not; the held-out errors are on the first candidate's path")
+        c.held, c.error = _held_out(c, x, blocks)
+    ranking = rank([c.held if c.held is not None else _failed(blocks, stretch) for c in cands],
+                   names=[repr(c.equation) for c in cands])
+    for c, v in zip(cands, ranking.verdicts):
+        c.verdict = v if c.held is not None else "failed"
+    return Comparison(cands, ranking.preferred, ranking.reason, stretch, blocks, notes)
+
+
+def _observe_like(observation, states: Sequence[str], other: Sequence[str]):
+    """What makes another candidate's plan (states `other`) read the frames as the first one's
+    (states `states`) did: its model's name, or one per state by position (the candidates' states
+    may be named differently)."""
+    parts = getattr(observation, "parts", None)
+    if parts:
+        return {o: parts[s].name for s, o in zip(states, other)}
+    return observation.name
+
+
+def _same_signal(latent: np.ndarray, made_for, read_by) -> np.ndarray:
+    """The first candidate's measured latent as `read_by`'s plan reads the same columns: in the
+    state's own units as it is, else standardised to that plan's prior (trainer._measured_latent)."""
+    if read_by.observation.physical_units:
+        return latent
+    (m0, s0), (m1, s1) = made_for.prior, read_by.prior
+    return m1 + s1 * (latent - m0) / s0
+
+
+def _bent(result) -> bool:
+    return bool((result.checks.get("perspective") or {}).get("apply"))
+
+
+def _correlation(a: np.ndarray, b: np.ndarray) -> float:
+    a, b = a.reshape(len(a), -1), b.reshape(len(b), -1)
+    if a.shape != b.shape:
+        return 0.0
+    out = []
+    for i in range(a.shape[1]):
+        if a[:, i].std() == 0 or b[:, i].std() == 0:
+            return 0.0
+        out.append(abs(float(np.corrcoef(a[:, i], b[:, i])[0, 1])))
+    return min(out)
+
+
+def _held_out(c: CandidateFit, x: np.ndarray, blocks: int):
+    from fitode.eqparse.gauge import gauge_plan
+    from fitode.train.crossval import held_out
+
+    system, plan, traj = c.request.system, c.plan, c.result.meta["trajectory"]
+    gauges = plan.observation.gauge_plan(gauge_plan(system))
+    try:
+        held = held_out(system, plan.params, x, plan.dt, traj["values"], fitted_gauge=traj.get("gauge"),
+                        gauge=gauges, blocks=blocks, integrator=plan.config.integrator,
+                        substeps=plan.config.substeps)
+    except ValueError as exc:  # too few frames for the blocks
+        raise FitodeError(f"cannot cross-validate: {exc}") from None
+    if not math.isfinite(held.error):
+        return held, "a held-out fit left the equation's domain"
+    return held, None
+
+
+def _failed(blocks: int, stretch: tuple[int, int]):
+    from fitode.train.crossval import HeldOut, blocks_of
+    return HeldOut(blocks_of(stretch[1] - stretch[0], blocks), np.full(blocks, math.inf))
