@@ -4,8 +4,10 @@ predicts stretches of the measured path it was not fitted on (fitode.train.cross
 The clip is read once. The first candidate is planned and fitted as a single equation would be
 (its observation model, the stretch of the clip one trajectory explains); every other candidate
 is then fitted on the same frames, read by the same observation model, on the same stretch. The
-blocked cross-validation of every candidate runs on the first one's measured path (each candidate
-reads it in its own gauge, as its fit did), so the held-out errors are in one unit.
+blocked cross-validation of every candidate runs on one measured path (each candidate reads it in
+its own gauge, as its fit did), so the held-out errors are in one unit: the path as measured, not
+as one candidate's perspective re-read it (the position observation's re-reading is fitted with
+the equation, and a bend can stand in for a missing term).
 
 Only a measured path (position, angle, brightness, size) can be compared: a free latent is
 learned for each candidate in units of its own, so their held-out errors would measure
@@ -127,22 +129,23 @@ def compare(requests: Sequence, frames, dt: float, *, track=None, time_offset: f
             c.error, c.result = "its measured path could not be fitted directly", None
             continue
         c.result.meta["stretch"] = {**st, "source": "the first candidate's, for the comparison"}
-    base = np.asarray(first.result.latent, dtype=np.float64)[stretch[0]:stretch[1]]
-    notes = []
-    for c in cands:
-        if c.result is None:
-            continue
-        x = _same_signal(base, first.plan, c.plan)
+    # the path every candidate is scored on: as measured, not as a candidate's perspective re-read it
+    # (a fall without drag re-read through a perspective bends the drag away: scored on its own
+    # bent path it would win), so the first candidate whose fit read it straight gives it
+    fitted = [c for c in cands if c.result is not None]
+    source = next((c for c in fitted if not _bent(c.result)), first)
+    base = np.asarray(source.result.latent, dtype=np.float64)[stretch[0]:stretch[1]]
+    notes = [f"{c.equation!r}: its own fit read the path through a perspective "
+             f"({c.result.checks['perspective']['bend_at_ends']:.0%} at the ends); every held-out error is on the "
+             f"path as {'measured' if not _bent(source.result) else 'the first candidate read it'}"
+             for c in fitted if _bent(c.result)]
+    for c in fitted:
+        x = _same_signal(base, source.plan, c.plan)
         own = _same_signal(np.asarray(c.result.latent, dtype=np.float64)[stretch[0]:stretch[1]], c.plan, c.plan)
         if _correlation(x, own) < SAME_PATH:
-            raise FitodeError(f"the candidates read different paths from the clip ({first.equation!r} and "
+            raise FitodeError(f"the candidates read different paths from the clip ({source.equation!r} and "
                               f"{c.equation!r}: the states' names pick what is measured, x across and y up); "
                               "name the states alike")
-        if _bent(c.result) != _bent(first.result):
-            bent = c if _bent(c.result) else first
-            notes.append(f"{bent.equation!r}: its own fit read the path through a perspective "
-                         f"({bent.result.checks['perspective']['bend_at_ends']:.0%} at the ends), which the other "
-                         "candidates' did not; the held-out errors are on the first candidate's path")
         c.held, c.error = _held_out(c, x, blocks)
     ranking = rank([c.held if c.held is not None else _failed(blocks, stretch) for c in cands],
                    names=[repr(c.equation) for c in cands])

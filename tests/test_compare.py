@@ -171,3 +171,20 @@ def test_a_draining_tank_prefers_torricelli():
     h = _path("h' = -k*sqrt(h)", {"k": 0.05}, {"h": 0.23}, 200, dt, 0.0)[:, 0]
     comparison = _compared(_ball(100 - 400 * h, 40 + 0 * h, 110, 80), dt, ["h' = -k*h", "h' = -k*sqrt(h)"])
     assert comparison["preferred"] == "h' = -k*sqrt(h)", comparison["reason"]
+
+
+def test_an_equation_file_lists_alternatives(tmp_path):
+    from fitode import api
+    from fitode.eqfile import load_equation_file
+    path = tmp_path / "swing.toml"
+    path.write_text('name = "swing"\nequation = "%s"\nalternatives = ["theta\'\' = -g/L*theta"]\n'
+                    "[parameters]\nL = { init = 1.0, min = 0.0 }\nzeta = { init = 0.1 }\n" % PENDULUM)
+    spec = load_equation_file(path)
+    assert spec.candidates == [PENDULUM, "theta'' = -g/L*theta"]
+    assert set(spec.candidate(1).parameters) == {"L"}  # zeta is the first candidate's alone
+    reqs = api.requests(eq_file=str(path))
+    assert [r.equation for r in reqs] == spec.candidates and reqs[1].system.learnable == ("L",)
+    assert len(api.requests(system="pendulum")) == 1  # a file without alternatives: one equation, as before
+    path.write_text('name = "bad"\nequation = "%s"\nalternatives = "x"\n' % PENDULUM)
+    with pytest.raises(FitodeError, match="alternatives"):
+        load_equation_file(path)
