@@ -70,6 +70,7 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
     req = reqs[0]
     video = dict(fps=fps, start=start, end=end, roi=roi, size=size, color=color, stride=stride, mask=mask)
     clip = None
+    frames_path = frames
     if isinstance(frames, (str, os.PathLike)):
         clip, dt, time_offset = _read_path(frames, video, dt, time_offset, req, progress)
         frames = clip.frames
@@ -89,8 +90,14 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
         result = comparison.result
         result.meta["comparison"] = comparison.to_dict()
     else:
-        result = api.execute(req, api.plan(req, x, dt, track=track), x, time_offset=time_offset, callback=callback,
-                             progress=progress, rate_std=rate)
+        plan = api.plan(req, x, dt, track=track)
+        if clip is not None:
+            from fitode.pipeline import light_in_colour
+            clip, time_offset, plan = light_in_colour(frames_path, _read_options(video), req, clip, time_offset, plan,
+                                                      progress=progress)
+            x = api.as_frames(clip.frames)
+        result = api.execute(req, plan, x, time_offset=time_offset, callback=callback, progress=progress,
+                             rate_std=rate)
     if clip is not None:  # what was measured, in the video's pixels as `fitode VIDEO` writes it
         from fitode.pipeline import source_measurement
         source_measurement(result, clip)
@@ -99,13 +106,17 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
 
 def _read_path(path, video: dict[str, Any], dt, time_offset, req, progress: bool):
     """The clip, dt and time offset of a video path, read as `fitode VIDEO` reads it."""
-    from fitode.pipeline import ReadOptions, read_clip
+    from fitode.pipeline import read_clip
 
     if time_offset:
         raise ConfigError("time_offset is for frames given as an array; a path's first frame is at its start")
-    read = ReadOptions(**{**video, "stride": "auto" if video["stride"] is None else video["stride"]})
-    clip, t0 = read_clip(path, read, req.calibration, progress=progress)
+    clip, t0 = read_clip(path, _read_options(video), req.calibration, progress=progress)
     if dt is not None and not (isinstance(dt, (int, float)) and math.isclose(dt, clip.dt, rel_tol=1e-6)):
         raise ConfigError(f"dt={dt!r} disagrees with the clip's {clip.dt:g} s (stride {clip.stride} / "
                           f"{clip.fps:g} fps); leave dt out for a path, or set fps")
     return clip, float(clip.dt), t0
+
+
+def _read_options(video: dict[str, Any]):
+    from fitode.pipeline import ReadOptions
+    return ReadOptions(**{**video, "stride": "auto" if video["stride"] is None else video["stride"]})
