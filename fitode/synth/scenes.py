@@ -417,6 +417,37 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
                   state=np.stack([s, v], axis=1), state_names=("x", "x'"))
 
 
+# --- a fall with drag, side-on ---------------------------------------------------------------
+
+def _drag_fall(k, rng, duration, dt, h, w, p) -> _Scene:
+    """A light ball dropped from rest in front of a wall, filmed side-on from far away (no
+    perspective: every point of the fall is at the same distance), quadratic air drag:
+    y'' = g - k y'|y'| with y the distance fallen (down), terminal velocity sqrt(g/k)."""
+    if not 0.001 <= k <= 10:
+        raise FitodeError(f"k must be between 0.001 and 10 per metre, got {k}")
+    vt = float(np.sqrt(G / k))
+    rest = float(p.get("rest_before", 0.0))
+    t_all = np.arange(_frame_count(duration, np.inf, dt, "the fall")) * dt
+    t = np.clip(t_all - rest, 0.0, None)
+    y = vt ** 2 / G * np.log(np.cosh(G * t / vt))
+    v = vt * np.tanh(G * t / vt)
+    r = 0.03
+    ppm = 0.9 * h / (float(y[-1]) + 4 * r)
+    bg = _wall(rng, h, w, base=(0.8, 0.79, 0.75), light_from=(0.5, 0.0))
+    top = 2 * r * ppm
+    ball = _rgb(0.75, 0.12, 0.1)
+
+    def draw(c: R.Canvas, i: int) -> None:
+        cx, cy, rr = 0.5 * w, top + y[i] * ppm, r * ppm
+        c.paint(R.circle(cx, cy, rr), R.sphere_shade(cx, cy, rr, ball, light=(-0.3, -0.3, 0.9), specular=0.3),
+                (cx - rr, cy - rr, cx + rr, cy + rr))
+
+    return _Scene(background=bg, draw=draw, latent=y[:, None], latent_names=("y",), truth={"k": k},
+                  physical={"k": k, "terminal_velocity": vt, "g": G, "pixels_per_metre": float(ppm),
+                            "rest_before_frames": int(round(rest / dt))},
+                  state=np.stack([y, v], axis=1), state_names=("y", "y'"))
+
+
 # --- LED -----------------------------------------------------------------------------------
 
 def _led(gamma, rng, duration, dt, h, w, p) -> _Scene:
@@ -549,6 +580,9 @@ SCENES: dict[str, SceneInfo] = {i.name: i for i in (
     SceneInfo("led", "gamma", (2.3, 0.92, 0.46), "1/s",
               "an LED whose brightness decays as exp(-gamma t)", 3.0,
               ("I0",), "I' = -gamma*(I - c)", "led_decay", _led),
+    SceneInfo("drag_fall", "k", (0.27, 0.1, 0.05), "1/m",
+              "a light ball falling side-on with quadratic air drag (terminal velocity sqrt(g/k))", 1.2,
+              ("rest_before",), "y'' = g - k*y'*abs(y')", "drag_fall", _drag_fall),
     SceneInfo("free_fall", "r0", (0.0335, 0.06, 0.10), "m",
               "a ball of radius r0 falling away from a camera looking down", None,
               ("h0", "floor"), "d'' = g", "free_fall_scale", _free_fall),
