@@ -133,6 +133,28 @@ def test_a_uniform_patch_cannot_tell_the_curve():
     assert flat.light == "srgb" and not flat.told and "cannot tell" in flat.caution
 
 
+def _rate(y: np.ndarray, t: np.ndarray) -> float:
+    from scipy.optimize import least_squares
+    r = least_squares(lambda p: p[0] * np.exp(-p[1] * t) + p[2] - y, [y[0] - y[-1], 1.0, y[-1]])
+    return float(r.x[1])
+
+
+def test_the_light_is_read_where_it_changes_not_in_a_faint_wash_a_codec_holds_back():
+    from fitode.train.observe.brightness import BrightnessObservation
+    t = np.arange(120) / 60
+    yy, xx = np.mgrid[0:24, 0:24]
+    core = np.exp(-((xx - 12) ** 2 + (yy - 12) ** 2) / 6.0)
+    wash = 0.08 * (np.hypot(xx - 12, yy - 12) > 4)
+    # the lamp decays at 1/s; its faint wash changes by a few codec steps, which lag (here: decay at 0.5/s)
+    light = 0.05 + 0.8 * core[None] * np.exp(-t)[:, None, None] + wash[None] * np.exp(-0.5 * t)[:, None, None]
+    frames = torch.as_tensor(light, dtype=torch.float32)[:, None]
+    prepared = BrightnessObservation("linear").prepare(frames, "linear")
+    assert _rate(prepared.inputs.reshape(len(t), -1)[:, 0].double().numpy(), t) == pytest.approx(1.0, rel=0.01)
+    everything = frames.reshape(len(t), -1).double()  # what the whole frame reads: the wash pulls the rate down
+    u = torch.linalg.svd(everything - everything.mean(dim=0), full_matrices=False)[0][:, 0].numpy()
+    assert _rate(u, t) < 0.9
+
+
 def oscillator(size: int = 32, seconds: float = 8.0):
     from fitode.synth import render_equation
     return render_equation("z'' = -k*z - c*z'", constants={"k": 16.0, "c": 0.3}, y0={"z": 1.0},
@@ -163,10 +185,11 @@ def test_pulldown_and_phone_clips_fit_like_their_clean_versions(tmp_path):
              "pulldown": write_timed(pulldown(sample_at(fine, t24)), t30, tmp_path / "pd.mp4", 30.0),
              "clean30": write_timed(sample_at(fine, t30), t30, tmp_path / "c30.mp4", 30.0),
              "phone": write_timed(sample_at(fine, tv), tv, tmp_path / "vfr.mp4", 30.0)}
-    k = {name: fitode.fit(str(p), eq="z'' = -k*z - c*z'", restarts=2, stride=1, progress=False).parameters["k"].value
-         for name, p in clips.items()}
-    assert k["pulldown"] == pytest.approx(k["clean24"], rel=0.01)
-    assert k["phone"] == pytest.approx(k["clean30"], rel=0.01)
+    fits = {name: fitode.fit(str(p), eq="z'' = -k*z - c*z'", restarts=2, stride=1, progress=False).parameters
+            for name, p in clips.items()}
+    for name in ("k", "c"):  # every constant, the damping too (the pulldown's steps doubled it before)
+        assert fits["pulldown"][name].value == pytest.approx(fits["clean24"][name].value, rel=0.01)
+        assert fits["phone"][name].value == pytest.approx(fits["clean30"][name].value, rel=0.01)
 
 
 @pytest.mark.slow
@@ -181,4 +204,7 @@ def test_a_linear_lamp_is_read_as_linear_and_an_untold_curve_is_not_trusted(tmp_
     assert "decoded from sRGB" in srgb.meta["subspace"]
     if "cannot tell" in " ".join(str(f) for f in srgb.checks.get("findings", [])):
         assert srgb.verdicts["gamma"]["verdict"] != "trusted"
-    assert srgb.parameters["gamma"].value == pytest.approx(linear.parameters["gamma"].value, rel=0.05)
+    # read where the light changes, and in colour where it is decoded (a gray mix of encoded values
+    # does not decode to light): both within 5% of the lamp's rate (before: -6.6% and -6.3%)
+    for fitted in (linear, srgb):
+        assert fitted.parameters["gamma"].value == pytest.approx(0.92, rel=0.05)
