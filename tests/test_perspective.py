@@ -3,6 +3,7 @@ trajectory of the equation, and a path seen square on is read straight."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from fitode.eqparse import parse
 from fitode.train.config import TrainConfig
@@ -42,3 +43,35 @@ def test_a_bend_whose_pole_falls_inside_the_frames_is_refused():
     x = np.linspace(-1.0, 1.0, 21)
     assert unbend(x, 0.5, 0.0) is not None
     assert unbend(x, 1.2, 0.0) is None  # 1 + c (x - m) reaches zero at x = -0.83
+
+
+def _drag_fall(t: np.ndarray, k: float = 0.2724, g: float = 9.80665) -> np.ndarray:
+    vt = np.sqrt(g / k)
+    return vt ** 2 / g * np.log(np.cosh(g * t / vt))
+
+
+def test_a_fall_read_up_is_turned_to_run_down_as_its_equation_says():
+    from fitode.eqparse.gauge import gauge_plan
+    from fitode.train.direct import orientation
+    system = parse("y'' = g - k*y'*abs(y')")
+    t = np.arange(240) / 240
+    up = -(_drag_fall(t) - 1.0) / 1.5  # the reader's y runs up, in units of its own
+    gauge = gauge_plan(system)
+    assert gauge["y"].scale_learned
+    assert list(orientation(system, {}, up[:, None], 1 / 240, {"k": 1.0}, gauge=gauge)) == [-1.0]
+    assert list(orientation(system, {}, -up[:, None], 1 / 240, {"k": 1.0}, gauge=gauge)) == [1.0]
+
+
+@pytest.mark.slow
+def test_a_fall_with_strong_drag_gives_k_side_on_and_no_perspective_bend(tmp_path):
+    import fitode
+    from fitode.synth import scene, write_video
+
+    v = scene("drag_fall", 0.2724, fps=240, size=(240, 60), seed=0)
+    y, dt = v.state[:, 0], v.dt
+    i, j = 12, len(y) - 12
+    res = fitode.fit(str(write_video(v, tmp_path / "drag.mp4")), eq="y'' = g - k*y'*abs(y')", restarts=2,
+                     progress=False, calibrate=f"y({i * dt:.5f})={y[i]:.5f}; y({j * dt:.5f})={y[j]:.5f}")
+    # before: the path read up (y up) had no one trajectory with a positive scale, k = -0.003
+    assert res.values["k"] == pytest.approx(0.2724, rel=0.10)
+    assert not res.checks["perspective"]["apply"]

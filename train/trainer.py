@@ -31,7 +31,7 @@ from .result import Estimate, FitResult, RunRecord
 from .score import dominant_period, separation_score
 from .selection import select_runs, selection
 from .starts import CANDIDATES, data_starts
-from .direct import full_fit, fit_path, fitted_path, screen
+from .direct import full_fit, fit_path, fitted_path, orientation, screen
 from .stretch import MIN_SEED, find_stretch
 from .trajectory import SEGMENT, fit_trajectory, long_options
 from .findings import Finding
@@ -182,6 +182,9 @@ def _measured_fit(prepared, plan: FitPlan, gauges, stretch: tuple[int, int] | No
     fit, the prepared columns as fitted, and the meta it adds ("stretch", "trajectory")."""
     system, params, config, observation, dt = plan.system, plan.params, plan.config, plan.observation, plan.dt
     latent = _measured_latent(prepared, plan)
+    latent = latent * orientation(system, params, latent[:plan.n_train], dt,
+                                  restart_inits(system, params, 1, config.seed, plan.init)[0], gauge=gauges,
+                                  integrator=config.integrator, substeps=config.substeps)
     T, k = latent.shape
     options = {"integrator": config.integrator, "substeps": config.substeps}
     if stretch is None:
