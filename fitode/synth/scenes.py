@@ -22,6 +22,13 @@ The dynamics are the physics, not a fit target's approximation:
 - free_fall: a ball dropped h0 = 0.20 m below a camera looking straight down; its distance
   d = h0 + g t^2 / 2 (d'' = g) and its apparent radius r0 f / d (the dataset's model,
   f = 1451 px/m at 1920 px wide, scaled with the width here); r0 = 0.0335, 0.06, 0.10 m.
+- spring: y'' = -w2 y - c y' (exact), a can's height on a spring; it also sways sideways (another
+  frequency) and turns, and a ball is carried across the view behind it (distractors = 1 or 2
+  crossings); w2 = 12, 18, 30 1/s^2, c = 0.08 /s.
+- throw: y'' = -g (exact), a small ball (1.4 pixels in radius at 320x240) thrown across the view,
+  held still before and lying still after (rest_before, rest_after seconds); meta["physical"] has
+  the flight's frames and the horizontal x. Film it with fps=240 and store it at 30 (a phone's
+  slow motion): dataclasses.replace(video, dt=1/30) before write_video.
 Each equation is, word for word, that of a shipped equation file, named in meta["system"]
 (pendulum, torricelli, sliding_block, led_decay, free_fall_scale). The ground truth (its
 constants, the latent trajectory) is in SynthVideo.truth and .latent; physical extras (g, a,
@@ -550,6 +557,142 @@ def _free_fall(r0, rng, duration, dt, h, w, p) -> _Scene:
                   state=np.stack([dist, G * t], axis=1), state_names=("d", "d'"))
 
 
+# --- spring --------------------------------------------------------------------------------
+
+SPRING_EQUATION = "y'' = -w2*y - c*y'"
+
+
+def _spring(w2, rng, duration, dt, h, w, p) -> _Scene:
+    """A can hanging on a spring: it bounces (y, up, the damped oscillator), sways sideways (the
+    spring swings about its hook, another frequency) and turns (its label goes round); a second
+    object crosses the view behind it (a ball carried by someone walking past)."""
+    if not 1.0 <= w2 <= 400.0:
+        raise FitodeError(f"the spring's w2 must be between 1 and 400 1/s^2, got {w2}")
+    c = float(p.get("c", 0.08))
+    amp = float(p.get("amplitude", rng.uniform(0.05, 0.07)))      # metres, first bounce
+    sway = float(p.get("sway", 0.06))                              # metres, sideways
+    omega_s = float(p.get("sway_omega", 0.62 * np.sqrt(w2)))       # rad/s, not the bounce's
+    crossings = int(p.get("distractors", 1))
+    n = _frame_count(duration, np.inf, dt, "the spring")
+    t = np.arange(n) * dt
+    wd = np.sqrt(max(w2 - c * c / 4, 1e-9))
+    # y(0) = amp, y'(0) = 0 of y'' = -w2 y - c y' (exact)
+    y = amp * np.exp(-c * t / 2) * (np.cos(wd * t) + c / (2 * wd) * np.sin(wd * t))
+    yv = -amp * w2 / wd * np.exp(-c * t / 2) * np.sin(wd * t)
+    phase = rng.uniform(0, 2 * np.pi)
+    xs = sway * np.exp(-0.03 * t) * np.sin(omega_s * t + phase)
+    turn = rng.uniform(0, 2 * np.pi) + 0.9 * t  # the label goes round, radians
+
+    ppm = 0.55 * h / 0.45   # the scene spans about 0.8 m of height
+    hx, hy = w * (0.45 + rng.uniform(-0.03, 0.03)), 0.08 * h  # the hook
+    rest = 0.28 * ppm                                           # hook to the can's top at rest
+    can_w, can_h = 0.033 * ppm, 0.06 * ppm                      # half width, half height
+
+    bg = _wall(rng, h, w, base=(0.74, 0.72, 0.7), light_from=(0.7, 0.0))
+    floor_y = int(0.9 * h)
+    _paste_rows(bg, floor_y, _wood(rng, h - floor_y, w, base=(0.45, 0.38, 0.3)))
+    cv = R.Canvas(bg, 4)
+    cv.paint(R.box(hx, hy - 0.02 * h, 0.2 * w, 0.012 * h + 1, radius=1), _rgb(0.3, 0.3, 0.32),
+             (hx - 0.2 * w - 2, hy - 0.04 * h - 2, hx + 0.2 * w + 2, hy + 2))
+    # the crossing object: a ball at hand height, across the whole frame in a few seconds, in
+    # the clip's middle (and, with distractors = 2, back again near its end)
+    span = w + 0.2 * w
+    trips = [(0.35 * n * dt, 1.0)] + ([(0.75 * n * dt, -1.0)] if crossings > 1 else [])
+    cross_s = 2.4
+    dr = 0.05 * ppm
+    dy = 0.8 * h
+
+    def draw(cc: R.Canvas, i: int) -> None:
+        ti = t[i]
+        for start, sign in trips[:crossings]:
+            u = (ti - start) / cross_s
+            if 0 <= u <= 1:
+                bx = (-0.1 * w + u * span) if sign > 0 else (1.1 * w - u * span)
+                by = dy + 0.03 * h * np.sin(2 * np.pi * 2.2 * u)  # carried by someone walking
+                cc.paint(R.circle(bx, by, dr), R.sphere_shade(bx, by, dr, (0.75, 0.2, 0.15)),
+                         (bx - dr, by - dr, bx + dr, by + dr))
+        cx = hx + xs[i] * ppm
+        cy = hy + rest + can_h - y[i] * ppm  # image y down, the state y up
+        top = cy - can_h
+        coils = 14
+        ks = np.linspace(0, 1, 2 * coils + 1)
+        px = hx + (cx - hx) * ks + np.where(np.arange(len(ks)) % 2 == 1, 0.012 * ppm, 0.0) * np.where(
+            np.arange(len(ks)) % 4 == 1, 1, -1)
+        py = hy + (top - hy) * ks
+        for a in range(len(ks) - 1):
+            cc.paint(R.segment(px[a], py[a], px[a + 1], py[a + 1], 0.6), _rgb(0.35, 0.35, 0.38),
+                     (min(px[a], px[a + 1]) - 2, min(py[a], py[a + 1]) - 2,
+                      max(px[a], px[a + 1]) + 2, max(py[a], py[a + 1]) + 2))
+        tilt = np.arctan2(cx - hx, top - hy) * -1.0
+
+        def body(xx, yy):
+            u = np.clip((xx - cx) / can_w, -1, 1)
+            lit = 0.55 + 0.45 * np.sqrt(1 - u * u) * (0.8 - 0.2 * u)
+            # the label: a band that goes round with the can
+            ang = np.arcsin(u) + turn[i]
+            band = (np.cos(ang) > 0.3) & (np.abs(yy - cy) < 0.6 * can_h)
+            col = np.where(band[..., None], _rgb(0.85, 0.8, 0.2), _rgb(0.2, 0.3, 0.7))
+            return col * lit[..., None]
+        r = can_w + can_h + 2
+        cc.paint(R.box(cx, cy, can_w, can_h, tilt, radius=1.0), body, (cx - r, cy - r, cx + r, cy + r))
+
+    return _Scene(background=cv.image, draw=draw, latent=y[:, None], latent_names=("y",),
+                  truth={"w2": float(w2), "c": c},
+                  physical={"w2": float(w2), "c": c, "amplitude": amp, "sway": sway, "sway_omega": omega_s,
+                            "distractors": crossings, "pixels_per_metre": float(ppm),
+                            "period_s": float(2 * np.pi / wd)},
+                  state=np.stack([y, yv], axis=1), state_names=("y", "y'"))
+
+
+# --- throw ---------------------------------------------------------------------------------
+
+THROW_EQUATION = "y'' = -g"
+
+
+def _throw(g, rng, duration, dt, h, w, p) -> _Scene:
+    """A small ball thrown across the view: held still at the launch point (rest_before
+    seconds), a parabola (x at constant speed, y'' = -g up), then still where it lands
+    (rest_after). Filmed as a slow-motion phone does: give fps=240 and store the frames at 30."""
+    if not 0.5 <= g <= 50:
+        raise FitodeError(f"g must be between 0.5 and 50 m/s^2, got {g}")
+    flight = float(p.get("flight", 0.8))                # seconds in the air
+    span = float(p.get("range", 2.0))                    # metres across
+    radius = float(p.get("radius", 0.011))               # metres
+    rest_before, rest_after = float(p.get("rest_before", 0.1)), float(p.get("rest_after", 0.1))
+    vx, vy = span / flight, g * flight / 2
+    before, after = int(round(rest_before / dt)), int(round(rest_after / dt))
+    inflight = int(np.floor(flight / dt + 1e-9)) + 1
+    total = before + inflight + after
+    n = total if duration is None else min(total, _frame_count(duration, np.inf, dt, "the throw"))
+    tf = np.clip((np.arange(n) - before) * dt, 0.0, (inflight - 1) * dt)
+    x = vx * tf
+    y = vy * tf - 0.5 * g * tf ** 2
+    vel = np.where((np.arange(n) >= before) & (np.arange(n) < before + inflight), vy - g * tf, 0.0)
+    ppm = 0.8 * w / span
+    ox, oy = 0.1 * w, 0.75 * h - rng.uniform(0, 0.05) * h
+    if vy * vy / (2 * g) * ppm > 0.7 * h:
+        ppm = 0.7 * h / (vy * vy / (2 * g))
+    rb = max(radius * ppm, 0.8)
+
+    bg = _wall(rng, h, w, base=(0.8, 0.78, 0.74), light_from=(0.3, 0.0))
+    floor_y = int(oy + 3 * rb + 2)
+    _paste_rows(bg, floor_y, _wood(rng, h - floor_y, w, base=(0.5, 0.42, 0.33)))
+    cv = R.Canvas(bg, 4)
+
+    def draw(cc: R.Canvas, i: int) -> None:
+        bx, by = ox + x[i] * ppm, oy - y[i] * ppm
+        cc.paint(R.circle(bx, by, rb), R.sphere_shade(bx, by, rb, (0.9, 0.35, 0.1)),
+                 (bx - rb - 1, by - rb - 1, bx + rb + 1, by + rb + 1))
+
+    return _Scene(background=cv.image, draw=draw, latent=y[:, None], latent_names=("y",),
+                  truth={"g": float(g)},
+                  physical={"g": float(g), "vx": vx, "vy": vy, "flight_s": flight, "range": span,
+                            "radius_px": float(rb), "pixels_per_metre": float(ppm),
+                            "flight_start_frame": before, "flight_end_frame": before + inflight,
+                            "x": x.tolist()},
+                  state=np.stack([y, vel], axis=1), state_names=("y", "y'"))
+
+
 @dataclass(frozen=True)
 class SceneInfo:
     """One scene of the dataset: what it varies, how it is drawn, the equation it obeys."""
@@ -586,6 +729,12 @@ SCENES: dict[str, SceneInfo] = {i.name: i for i in (
     SceneInfo("free_fall", "r0", (0.0335, 0.06, 0.10), "m",
               "a ball of radius r0 falling away from a camera looking down", None,
               ("h0", "floor"), "d'' = g", "free_fall_scale", _free_fall),
+    SceneInfo("spring", "w2", (12.0, 18.0, 30.0), "1/s^2",
+              "a can bouncing on a spring while it sways and turns, a ball carried across behind it", 12.0,
+              ("c", "amplitude", "sway", "sway_omega", "distractors"), SPRING_EQUATION, "spring", _spring),
+    SceneInfo("throw", "g", (1.62, 9.80665, 24.79), "m/s^2",  # the Moon, the Earth, Jupiter
+              "a small ball thrown across the view (film it at 240 fps)", None,
+              ("flight", "range", "radius", "rest_before", "rest_after"), THROW_EQUATION, "throw", _throw),
 )}
 
 
