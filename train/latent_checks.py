@@ -37,7 +37,7 @@ def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt:
     the signal subspace it read, and the best run's window miss (RunRecord.miss); and the numbers
     behind them. observation: the model that read the frames (None: the paper's free encoder);
     it says which of the checks that depend on what the latent is apply (its `applies`)."""
-    applies = observation.applies if observation is not None else (lambda check: check in ("score", "quiet"))
+    applies = observation.applies if observation is not None else (lambda check: check in ("score", "quiet", "periods"))
     findings: list[Finding] = []
     numbers: dict[str, float | None] = {"score": score}
     if applies("score") and (score is None or not math.isfinite(score) or score < SCORE_MIN):
@@ -60,8 +60,9 @@ def video_checks(latent: np.ndarray, rollout: np.ndarray, coefs: np.ndarray, dt:
         findings.append(Finding("ambiguous", f"the state changes one way only, and a linear readout of {rank} "
                                 "principal components can still bend it (an object that moves, not one that "
                                 "brightens)"))
-    t_frames = dominant_period(coefs, dt) if oscillator else None
     t_latent = dominant_period(latent, dt) if oscillator else None
+    # a measured latent reads one part of what the frames show: its own period is the reference
+    t_frames = (dominant_period(coefs, dt) if applies("periods") else t_latent) if oscillator else None
     finite_roll = rollout[np.all(np.isfinite(rollout), axis=1)] if rollout.size else rollout
     t_roll = dominant_period(finite_roll, dt) if oscillator and len(finite_roll) == len(rollout) else None
     numbers.update(period_frames=t_frames, period_latent=t_latent, period_equation=t_roll)

@@ -631,7 +631,7 @@ def _spring(w2, rng, duration, dt, h, w, p) -> _Scene:
             # the label: a band that goes round with the can
             ang = np.arcsin(u) + turn[i]
             band = (np.cos(ang) > 0.3) & (np.abs(yy - cy) < 0.6 * can_h)
-            col = np.where(band[..., None], _rgb(0.85, 0.8, 0.2), _rgb(0.2, 0.3, 0.7))
+            col = np.where(band[..., None], _rgb(0.75, 0.1, 0.08), _rgb(0.15, 0.25, 0.65))
             return col * lit[..., None]
         r = can_w + can_h + 2
         cc.paint(R.box(cx, cy, can_w, can_h, tilt, radius=1.0), body, (cx - r, cy - r, cx + r, cy + r))

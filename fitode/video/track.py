@@ -91,10 +91,20 @@ class TrackRecorder:
 def measure(stack: np.ndarray) -> tuple[np.ndarray, float]:
     """(T, 2) change-weighted centroid (x, y) in the frames' pixels of the moving object in gray
     frames (T, H, W) uint8, NaN where nothing changes, and its mean area in pixels."""
+    paths, area = measure_paths(stack, 1)
+    return paths[0], area
+
+
+def measure_paths(stack: np.ndarray, objects: int = 1) -> tuple[np.ndarray, float]:
+    """(objects, T, 2) the paths of the `objects` strongest moving things in gray frames
+    (T, H, W) uint8 (see follow), the first the object's, NaN where a path has nothing; and the
+    first object's mean area in pixels."""
     sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), BACKGROUND_FRAMES)).round().astype(int))
     background = np.median(stack[sample], axis=0).round().astype(np.uint8)
     noise = _noise(stack[sample[::6]], background)
-    xy, area = _measure_all(stack, background, noise, range(len(stack)))
+    found = {t: _candidates(stack[t], background, noise) for t in range(len(stack))}
+    xy, area = _paths(found, len(stack), 1)
+    xy = xy[0]
     seen = ~np.isnan(xy[sample, 0])
     if seen.any():
         size = math.sqrt(max(float(np.nanmean(area)), 1.0))
@@ -114,11 +124,11 @@ def measure(stack: np.ndarray) -> tuple[np.ndarray, float]:
         if moved.any():
             my, mx = np.nonzero(moved)
             reach = 4 * size + 4
-            again = [t for t in range(len(stack)) if np.isnan(xy[t, 0]) or
-                     np.any((np.abs(mx - xy[t, 0]) < reach) & (np.abs(my - xy[t, 1]) < reach))]
-            more, more_area = _measure_all(stack, rebuilt, noise, again)
-            xy[again], area[again] = more[again], more_area[again]
-    return xy, float(np.nanmean(area)) if np.isfinite(area).any() else 0.0
+            for t in range(len(stack)):
+                if np.isnan(xy[t, 0]) or np.any((np.abs(mx - xy[t, 0]) < reach) & (np.abs(my - xy[t, 1]) < reach)):
+                    found[t] = _candidates(stack[t], rebuilt, noise)
+    paths, area = _paths(found, len(stack), objects)
+    return paths, float(np.nanmean(area)) if np.isfinite(area).any() else 0.0
 
 
 def _noise(frames: np.ndarray, background: np.ndarray) -> float:
@@ -127,18 +137,114 @@ def _noise(frames: np.ndarray, background: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(frames[:, ::2, ::2].astype(np.int16) - background[::2, ::2]))) + 0.5
 
 
-def _measure_all(stack: np.ndarray, background: np.ndarray, noise: float, frames) -> tuple[np.ndarray, np.ndarray]:
-    xy = np.full((len(stack), 2), np.nan)
-    area = np.full(len(stack), np.nan)
-    for t in frames:
-        found = _measure_one(stack[t], background, noise)
-        if found is not None:
-            xy[t], area[t] = found[:2], found[2]
+def _paths(found: dict[int, list[tuple[float, float, float, float]]], length: int,
+           objects: int) -> tuple[np.ndarray, np.ndarray]:
+    """(objects, T, 2) each object's path through the frames' candidates (see follow), NaN where
+    it has none, and the first object's area per frame."""
+    xy = np.full((objects, length, 2), np.nan)
+    area = np.full(length, np.nan)
+    for o, path in enumerate(follow(found, length, objects)):
+        for t, j in path.items():
+            xy[o, t] = found[t][j][:2]
+            if o == 0:
+                area[t] = found[t][j][2]
     return xy, area
 
 
-def _measure_one(frame: np.ndarray, background: np.ndarray, noise: float) -> tuple[float, float, float] | None:
+def follow(found: dict[int, list[tuple[float, float, float, float]]], length: int,
+           objects: int = 1) -> list[dict[int, int]]:
+    """The candidates (x, y, area, mass; each frame's strongest first) that make up each object's
+    path: {frame: candidate index} per object, the strongest path first.
+
+    A frame's strongest change is not always the object: something crossing the view (a person,
+    a ball carried past) can outweigh it for a while. The path is the one through the frames'
+    candidates that jumps least and is strongest (a Viterbi pass): a step costs its length over
+    the object's own motion from frame to frame, squared; a candidate costs the log of how much
+    weaker it is than the frame's strongest. A jump to something else and back costs far more than
+    following a weaker object for a while. Each further object is the same pass over the
+    candidates the earlier paths left."""
+    frames = sorted(t for t in found if found[t])
+    if not frames:
+        return [{} for _ in range(objects)]
+    first = np.array([found[t][0][:2] for t in frames])
+    steps = np.hypot(*np.diff(first, axis=0).T) / np.maximum(np.diff(frames), 1) if len(frames) > 1 else np.zeros(0)
+    size = math.sqrt(max(float(np.median([found[t][0][2] for t in frames])), 1.0))
+    # the object's own motion per frame: the strongest candidates' typical step, locally (an
+    # object that speeds up), and never under a quarter of its size
+    base = max(2.0 * float(np.median(steps)) if len(steps) else 1.0, 0.25 * size, 1.0)
+    local = np.full(len(frames), base)
+    if len(steps) >= 7:
+        med = np.array([np.median(steps[max(0, i - 3):i + 4]) for i in range(len(steps))])
+        local[1:] = np.maximum(base, 2.0 * med)
+    paths: list[dict[int, int]] = []
+    taken: dict[int, set[int]] = {t: set() for t in frames}
+    for _ in range(objects):
+        path = _viterbi(found, frames, taken, local)
+        paths.append(path)
+        for t, j in path.items():
+            taken[t].add(j)
+    return paths
+
+
+def _viterbi(found, frames, taken, local) -> dict[int, int]:
+    cost_prev: np.ndarray | None = None
+    back: list[np.ndarray] = []
+    options: list[list[int]] = []
+    prev_xy, last_t = None, 0
+    for i, t in enumerate(frames):
+        opts = [j for j in range(len(found[t])) if j not in taken[t]]
+        options.append(opts)
+        if not opts:
+            back.append(np.zeros(0, int))
+            continue
+        strongest = max(found[t][0][3], 1e-12)
+        unary = np.array([math.log(strongest / max(found[t][j][3], 1e-12)) for j in opts])
+        xy = np.array([found[t][j][:2] for j in opts])
+        if cost_prev is None:
+            cost, arg = unary, np.zeros(len(opts), int)
+        else:
+            gap = t - last_t
+            scale = local[i] * gap
+            d2 = ((xy[:, None, :] - prev_xy[None, :, :]) ** 2).sum(axis=2) / scale ** 2
+            total = cost_prev[None, :] + d2
+            arg = np.argmin(total, axis=1)
+            cost = unary + total[np.arange(len(opts)), arg]
+        back.append(arg)
+        cost_prev, prev_xy, last_t = cost, xy, t
+    if cost_prev is None:
+        return {}
+    path: dict[int, int] = {}
+    k = int(np.argmin(cost_prev))
+    for i in range(len(frames) - 1, -1, -1):
+        if not options[i]:
+            continue
+        path[frames[i]] = options[i][k]
+        k = int(back[i][k])
+    return path
+
+
+CANDIDATES = 4  # the strongest changes each frame keeps for the path to choose from
+WEAKEST = 0.02   # a candidate's least mass, as a share of the frame's strongest
+
+
+def _candidates(frame: np.ndarray, background: np.ndarray, noise: float) -> list[tuple[float, float, float, float]]:
+    """Up to CANDIDATES separate changes in a frame, strongest first, each (x, y, area, mass):
+    the strongest as _measure_one finds it, then the strongest of what is left once its region
+    is set aside, and so on."""
     change = cv2.absdiff(frame, background)
+    out: list[tuple[float, float, float, float]] = []
+    for _ in range(CANDIDATES):
+        found = _measure_one(change, noise)
+        if found is None or (out and found[3] < WEAKEST * out[0][3]):
+            break
+        out.append(found[:4])
+        x0, y0, x1, y1 = found[4]
+        change[y0:y1, x0:x1] = 0
+    return out
+
+
+def _measure_one(change: np.ndarray, noise: float) -> tuple[float, float, float, float, tuple[int, int, int, int]] | None:
+    """The strongest change's centroid (x, y), area, mass (its change over the noise, summed) and box."""
     h, w = change.shape
     k = LOCATE if min(h, w) >= 16 * LOCATE else 1
     small = cv2.resize(change[:h - h % k, :w - w % k], (w // k, h // k), interpolation=cv2.INTER_AREA) if k > 1 else change
@@ -177,4 +283,5 @@ def _measure_one(frame: np.ndarray, background: np.ndarray, noise: float) -> tup
     if total <= 0:
         return None
     return (x0 + float(weight.sum(axis=0) @ np.arange(x1 - x0)) / total,
-            y0 + float(weight.sum(axis=1) @ np.arange(y1 - y0)) / total, float(np.count_nonzero(weight)))
+            y0 + float(weight.sum(axis=1) @ np.arange(y1 - y0)) / total, float(np.count_nonzero(weight)),
+            total, (x0, y0, x1, y1))

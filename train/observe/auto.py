@@ -19,7 +19,7 @@ from .base import ObservationModel
 from .brightness import BrightnessObservation
 from .catalog import AUTO, model_class, parse_observe
 from .circle import Circle, fit_circle
-from .position import PositionObservation
+from .position import PositionObservation, axis_of
 from .subspace import SUBSPACE_JUMP
 from .track import Track
 from .tracking import ONE_WAY, centroids, line_of_motion, noise_level, one_way
@@ -50,7 +50,9 @@ def resolve_observation(spec: str | Mapping[str, str] | ObservationModel | None,
     """The observation model a fit uses, bound to the equation's states and given the reader's
     track, with its reason: an instance as given, a name, one name per state ({state: name} or
     "x=position;y=size"), or "auto" (None): position where the change moves one way, angle where
-    a single state's change swings back and forth about a centre, brightness for a single
+    a single state's change swings back and forth about a centre, position where the change
+    moves otherwise and every state's name says its image axis (y'' = -w2*y - c*y' for a bouncing
+    spring, x'' = 0; y'' = -g for a throw), brightness for a single
     first-order linear equation whose frames brighten or dim as one, any otherwise (and wherever
     an encoder other than linear was asked for). source: where a named model came from, for its
     reason. track: the reader's track of every frame the fit will use (the auto choice looks at
@@ -101,6 +103,12 @@ def _resolved(spec, system, frames, light, encoder, source, track) -> Observatio
                         f"time) along an arc about a centre {c.radius:.0f} pixels away that bows {c.sagitta:.1f} "
                         f"pixels, {c.significance:.0f}x its uncertainty (scatter {c.scatter:.1f} pixels over "
                         f"{c.points} frames): the angle about that centre is the state in radians)")
+        return model
+    if seen is not None and seen.moves and all(axis_of(state) for state in system.states):
+        model = PositionObservation()
+        named = ", ".join(f"{state} {'across' if axis_of(state) == 'x' else 'up'}" for state in system.states)
+        model.reason = (f"position (auto: the change moves {seen.travel:.0f} pixels, {seen.travel / seen.size:.0f}x its "
+                        f"size, and the state's name says the image axis it is measured along ({named}))")
         return model
     if not power_symmetric(system):
         model = ObservationModel()

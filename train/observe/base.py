@@ -30,7 +30,7 @@ from .catalog import MODELS
 from .subspace import signal_subspace
 
 # the checks whose use depends on what the latent is (ObservationModel.applies)
-CHECKS = ("score", "quiet", "perspective", "trajectory", "rivals", "direct")
+CHECKS = ("score", "quiet", "perspective", "trajectory", "rivals", "direct", "periods")
 
 
 @dataclass
@@ -116,12 +116,16 @@ class ObservationModel:
         perspective: re-read a one-dimensional measured path through a camera's perspective
         (perspective.perspective_check). trajectory: the whole-clip, halves and one-trajectory checks
         of a measured path (consistency.py). direct: the measured path is fitted by one trajectory
-        itself (train/direct.py), every frame weighed alike, instead of training an encoder."""
+        itself (train/direct.py), every frame weighed alike, instead of training an encoder.
+        periods: the latent must repeat with the frames (a free latent that repeats at another
+        period is folded); a measured latent reads one part of what the frames show (the height
+        of a can that also sways sideways at its own period), so its fit is held to the latent's
+        own period instead."""
         if check not in CHECKS:
             raise ValueError(f"unknown check {check!r}; one of {', '.join(CHECKS)}")
         free = not self.measured
         return {"score": free, "quiet": free, "rivals": free, "trajectory": self.measured,
-                "perspective": False, "direct": self.measured}[check]
+                "perspective": False, "direct": self.measured, "periods": free}[check]
 
     def fixes_scale(self) -> bool:
         """Whether the latent fixes the state's units, so that a constant whose value depends on

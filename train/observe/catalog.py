@@ -55,7 +55,8 @@ def auto_rule(power_symmetric: bool) -> list[str]:
     """The rule behind "auto" (fitode.train.observe.auto.resolve_observation), in prose, for an
     equation that is (or is not) a single first-order linear equation, whose rate a bend of the
     latent would change."""
-    moving = "auto -> position where the change moves one way (a fall, a slide, a level): " + MODELS["position"].line
+    moving = ("auto -> position where the change moves one way (a fall, a slide, a level), or where it moves and "
+              "every state's name says its image axis (x across; y, h, z up): " + MODELS["position"].line)
     if not power_symmetric:
         return [moving, "elsewhere any, as no constant follows a bend of the latent: " + MODELS["any"].line]
     return [moving, "brightness where the change stays in place (it brightens or dims): " + MODELS["brightness"].line,

@@ -64,6 +64,16 @@ def _roughness(xy: torch.Tensor, fit_frames: int | None) -> float:
     return float(jumps) / max(float(along.max() - along.min()), 1e-12)
 
 
+def _strays(xy: torch.Tensor, fit_frames: int | None) -> float:
+    """The share of a path's (T, 2) fit frames that leave the path of their neighbours along its
+    line of motion (tracking.mend): the shrunk frames' centroid that jumps to something crossing
+    the view for a while (a ball carried past a spring) leaves it more often than the reader's
+    track, which follows the object through it."""
+    n = xy.shape[0] if fit_frames is None else int(fit_frames)
+    _, along = line_of_motion(xy.double(), n)
+    return mend(along[:n])[1] / max(n, 1)
+
+
 def _weak_axes(xy: torch.Tensor, axes: list[str]) -> list[int]:
     """The states whose named axis carries under AXIS_SHARE of the spread along the line of motion."""
     _, along = line_of_motion(xy)
@@ -105,12 +115,14 @@ class PositionObservation(MeasuredObservation):
         where, disagree = "", ""
         if self.track is not None and len(self.track) == frames.shape[0]:
             # the reader's track, at the source's resolution, where it runs as the frames' own
-            # centroids do: a track that jumps to something else (a hand, the floor; the real
-            # drop) is worse than the shrunk frames' coarser but whole view of the change
+            # centroids do, or jumps less than they do: a track that jumps to something else (a
+            # hand, the floor) is worse than the shrunk frames' coarser but whole view of the
+            # change; centroids that jump to something crossing the view are worse than the track
             full = torch.from_numpy(self.track.filled()).to(frames.device)
             # where the shrunk frames lose the object (a 2-pixel ball) the track has no rival
             agree = 1.0 if unseen > 0.1 * frames.shape[0] else _agreement(full, xy, fit_frames)
-            if agree >= TRACK_AGREE or _roughness(full, fit_frames) <= 1.5 * _roughness(xy, fit_frames):
+            if (agree >= TRACK_AGREE or _roughness(full, fit_frames) <= 1.5 * _roughness(xy, fit_frames)
+                    or _strays(full, fit_frames) < _strays(xy, fit_frames)):
                 xy, pixels, unseen = full, self.track.area, self.track.unseen
                 where = "the reader's track at the source's resolution: "
             else:
