@@ -309,6 +309,11 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     settings = result.settings
     options = {"integrator": str(settings.get("integrator", "rk4")), "substeps": int(settings.get("substeps", 1)),
                "windows": int(settings.get("window", 20))}
+    if result.meta.get("direct"):
+        # a measured path fitted as one trajectory is checked as one: short windows of a noisy
+        # path (a 2-pixel ball) start from noisy slopes and pull an acceleration down
+        from fitode.train.trajectory import long_options
+        options = {**options, "windows": None, **long_options(len(latent))}
     factors = map_factors(system, maps, x, result.states)
     rel_a = scale_uncertainty(points, time, latent, result.states, maps)
     from fitode.eqparse.identify import scale_exponents

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Mapping
 
 import numpy as np
@@ -100,8 +100,11 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
             # no restart's trajectory followed the path (a learned scale that runs off, a path of
             # noise): the encoder's training is the slower, older way to the same constants
             direct_failed = str(exc)
+    other_findings: list[Finding] = []
     if direct_failed is None and extra_meta:
         first, last = extra_meta["stretch"]["start_frame"], extra_meta["stretch"]["end_frame"]
+        if prepared.other is not None:
+            other_findings, prepared = _other_reading(prepared, plan, gauges, fit, (first, last), extra_meta)
     else:
         if direct_failed is not None:
             extra_meta = {"direct_failed": direct_failed}
@@ -135,6 +138,7 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
                                      observation=observation)
     if prepared.caution:
         findings.append(Finding("ambiguous", prepared.caution))
+    findings.extend(other_findings)
     if observation.applies("trajectory") and not interrupted:
         holds, numbers["whole_clip"] = whole_clip_check(system, params, states[best, span], dt,
                                                         records[best].final, config)
@@ -156,6 +160,55 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
               "left_out": fit.left_out, "measurement": prepared.drawing, **extra_meta},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},
     )
+
+
+OTHER_AGREE = 0.05  # the other reading's constants within this (relative) of the taken one's agree
+OTHER_SIGMAS = 3.0  # ... or within this many of their combined standard errors
+
+
+def _other_reading(prepared, plan: FitPlan, gauges, fit, stretch: tuple[int, int], meta: dict):
+    """The reading the state did not take (Prepared.other: a 2-D path's position across its line
+    of motion), fitted directly on the same stretch, in the same units: its constants into
+    meta["measurement"]["other_reading"] and the note; a finding (ambiguous) for each constant
+    that differs materially, since nothing says which reading is meant."""
+    column, what = prepared.other
+    system, config, dt = plan.system, plan.config, plan.dt
+    x = column.reshape(-1, 1).double().cpu().numpy()
+    taken = prepared.inputs.reshape(prepared.inputs.shape[0], -1)[:plan.n_train, 0].double().cpu().numpy()
+    if not plan.observation.physical_units:  # in the units _measured_latent gave the taken reading
+        mean, std = plan.prior
+        x = mean + std * (x - x[:plan.n_train].mean()) / max(float(taken.std()), 1e-12)
+    first, last = stretch
+    inits = restart_inits(system, plan.params, config.restarts, config.seed, plan.init)
+    seeds = [config.seed * 1000 + i for i in range(len(inits))]
+    try:
+        with _threads(config.threads):
+            direct = fit_path(system, plan.params, x[first:last], dt, inits, seeds, gauge=gauges,
+                              integrator=config.integrator, substeps=config.substeps)
+    except TrainingError:
+        direct = None
+    other = direct.fits[direct.best] if direct is not None else None
+    mine = fit.records[fit.best].final
+    errors = (meta.get("trajectory") or {}).get("errors") or {}
+    record = {"reading": what, "values": None if other is None else dict(other.values)}
+    drawing = dict(prepared.drawing or {})
+    drawing["other_reading"] = record
+    if other is None:
+        note = f"; the reading {what} could not be fitted as one trajectory"
+        return [], replace(prepared, note=prepared.note + note, drawing=drawing)
+    differ = []
+    for name in system.learnable:
+        a, b = float(mine[name]), float(other.values[name])
+        sigma = math.hypot(float(errors.get(name, 0.0) or 0.0), float(other.errors.get(name, 0.0) or 0.0))
+        if not (math.isfinite(a) and math.isfinite(b)) or abs(a - b) > max(OTHER_AGREE * max(abs(a), abs(b)),
+                                                                            OTHER_SIGMAS * sigma):
+            differ.append(name)
+    shown = ", ".join(f"{n} {other.values[n]:.5g} (taken: {mine[n]:.5g})" for n in system.learnable)
+    note = f"; the reading {what}, fitted too, gives {shown}"
+    findings = [Finding("ambiguous", f"the path read {what} gives {other.values[name]:.5g}, the reading "
+                        f"taken {mine[name]:.5g} (in the same units): nothing says which is meant; name the state "
+                        "for its image axis (x across; y, h, z up) or give --observe", (name,)) for name in differ]
+    return findings, replace(prepared, note=prepared.note + note, drawing=drawing)
 
 
 def _measured_columns(prepared) -> bool:

@@ -45,6 +45,10 @@ class Prepared:
     states: tuple[str, ...] | None = None  # the state each input column measures; None: a latent the encoder learns
     # what was measured, to draw on the frames (drawing.py's record; FitResult.meta["measurement"])
     drawing: dict[str, Any] | None = None
+    # the reading a measured state did not take, where another is as plausible (a 2-D path read
+    # along its line of motion: the reading across it), (T,) in the taken column's units, and
+    # what it is ("across the line of motion"); the trainer fits it too and compares
+    other: tuple[torch.Tensor, str] | None = None
 
     def in_order(self, states: Sequence[str]) -> "Prepared":
         """The measured columns in the equation's state order, checked: a model may measure its

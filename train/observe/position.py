@@ -166,7 +166,28 @@ class PositionObservation(MeasuredObservation):
                          mended=[int(i) for i in torch.nonzero(path != raw).flatten()] if mended else None,
                          line={"point": [float(v) for v in xy[:n_fit].mean(dim=0)],
                                "direction": [float(v) for v in direction]})
-        return self.column(z.to(dtype), components, note, caution, drawing)
+        prepared = self.column(z.to(dtype), components, note, caution, drawing)
+        across = self._across(xy, direction, n_fit, path[:n_fit].std().clamp_min(1e-6))
+        if across is not None:
+            prepared.other = (across.to(dtype), "across the line of motion")
+            prepared.note += ("; the path moves across that line too (a state's name says no image axis: x across; "
+                              "y, h, z up), so the reading across it is fitted as well")
+        return prepared
+
+    def _across(self, xy: torch.Tensor, direction: torch.Tensor, n_fit: int, unit: torch.Tensor) -> torch.Tensor | None:
+        """The position across the line of motion (T,), in the along-reading's units (unit: its
+        spread), where a single state reads the line and the path moves across it by at least
+        AXIS_SHARE of its motion along it (a throw's height beside its flight); else None."""
+        if len(self.equation_states or ()) != 1:
+            return None
+        normal = torch.stack([-direction[1], direction[0]]).to(xy.dtype)
+        if float(normal[1]) > 0:  # up the image (its y points down): a throw's height, not its depth
+            normal = -normal
+        raw = (xy - xy[:n_fit].mean(dim=0)) @ normal
+        path, _ = mend(raw, n_fit)
+        if float(path[:n_fit].std()) < AXIS_SHARE * float(unit):
+            return None
+        return path / unit
 
     def _axes(self, xy: torch.Tensor, states: tuple[str, ...], axes: list[str], n_fit: int, components: np.ndarray,
               pixels: float, where: str, dtype: torch.dtype) -> Prepared:
