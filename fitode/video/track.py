@@ -31,6 +31,7 @@ BACKGROUND_FRAMES = 48
 NOISE_SIGMAS = 4.0
 CORE = 0.5
 LOCATE = 4  # the whole factor the change is shrunk by to find the object's region
+MAX_OBJECTS = 3  # the strongest paths a track keeps for states that name their object
 
 
 class TrackRecorder:
@@ -80,12 +81,21 @@ class TrackRecorder:
             return None
         stack = np.stack([self.frames[i] for i in index])
         self.frames = []
-        xy, area = measure(stack)
+        paths, area = measure_paths(stack, MAX_OBJECTS)
         k = self.factor
-        xy = np.column_stack([self.crop[0] + (xy[:, 0] + 0.5) * k - 0.5, self.crop[1] + (xy[:, 1] + 0.5) * k - 0.5])
+        paths = np.stack([self.crop[0] + (paths[..., 0] + 0.5) * k - 0.5, self.crop[1] + (paths[..., 1] + 0.5) * k - 0.5],
+                         axis=-1)
         where = "at the source's resolution" if k == 1 else f"on frames shrunk {k}x to stay within memory"
         note = f"the change from the static scene, {area * k * k:.0f} source pixels on average, measured {where}"
-        return Track(xy, float(area * k * k), k, note)
+        return Track(paths[0], float(area * k * k), k, note, objects(paths))
+
+
+def objects(paths: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The paths (n, T, 2) that are in view in at least half the frames (a moving object, not
+    something that crosses the view or a flicker), from left to right (the median x): the objects
+    a state can name (`position@2`)."""
+    kept = [p for p in paths if np.isfinite(p[:, 0]).mean() >= 0.5]
+    return tuple(sorted(kept, key=lambda p: float(np.nanmedian(p[:, 0]))))
 
 
 def measure(stack: np.ndarray) -> tuple[np.ndarray, float]:

@@ -17,7 +17,7 @@ import torch
 from .angle import AngleObservation
 from .base import ObservationModel
 from .brightness import BrightnessObservation
-from .catalog import AUTO, model_class, parse_observe
+from .catalog import AUTO, model_class, parse_observe, split_object
 from .circle import Circle, fit_circle
 from .position import PositionObservation, axis_of
 from .subspace import SUBSPACE_JUMP
@@ -38,9 +38,13 @@ SPAN = 0.1
 
 
 def named_model(name: str, light: str = "auto") -> ObservationModel:
-    """The catalog's model of this name, with its options."""
+    """The catalog's model of this name, with its options ("position@2": of the second moving
+    object from the left)."""
+    name, k = split_object(name)
     cls = model_class(name)
-    return cls(light) if issubclass(cls, BrightnessObservation) else cls()
+    model = cls(light) if issubclass(cls, BrightnessObservation) else cls()
+    model.object = k
+    return model
 
 
 def resolve_observation(spec: str | Mapping[str, str] | ObservationModel | None, system,

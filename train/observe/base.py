@@ -77,6 +77,7 @@ class ObservationModel:
     measured = False
     # the latent is the state in its own physical units (radians for an angle): no gauge, no prior
     physical_units = False
+    object: int | None = None  # the moving object it reads, k-th from the left (position@2); None: the strongest
 
     def __init__(self, subspace: bool = True):
         self.subspace = subspace
@@ -86,8 +87,9 @@ class ObservationModel:
 
     def use_track(self, track) -> None:
         """Take the reader's track (track.Track, one row per frame the model will be given), which a
-        model that measures a place reads instead of the shrunk frames; None for none."""
-        self.track = track
+        model that measures a place reads instead of the shrunk frames; None for none. A model
+        of one object (`position@2`) takes that object's path."""
+        self.track = track.object(self.object) if track is not None and self.object is not None else track
 
     def bind(self, system) -> None:
         """Take the equation's states (resolve_observation calls this before any prepare)."""

@@ -85,7 +85,7 @@ def parse_observe(value: str | Mapping[str, str] | None) -> str | dict[str, str]
         return None
     if isinstance(value, str) and "=" not in value:
         name = value.strip()
-        if name not in CHOICES:
+        if split_object(name)[0] not in CHOICES:
             raise ConfigError(f"unknown observation model {name!r}; choose one of {', '.join(CHOICES)}")
         return name
     if isinstance(value, str):
@@ -96,9 +96,21 @@ def parse_observe(value: str | Mapping[str, str] | None) -> str | dict[str, str]
     if not isinstance(value, Mapping) or not value or not all(isinstance(v, str) for v in value.values()):
         raise ConfigError(f"observe must be a model's name or one per state (x=position;y=size), got {value!r}")
     for state, name in value.items():
-        if name not in MODELS:
+        base, _ = split_object(name)
+        if base not in MODELS:
             raise ConfigError(f"observe {state}={name!r}: choose one of {', '.join(MODELS)} for a state")
     return dict(value)
+
+
+def split_object(name: str) -> tuple[str, int | None]:
+    """"position@2" -> ("position", 2): the model, and the moving object it reads (the k-th from
+    the left that the tracker follows; None: the strongest)."""
+    base, at, k = name.partition("@")
+    if not at:
+        return name, None
+    if not k.strip().isdigit() or int(k) < 1:
+        raise ConfigError(f"observe {name!r}: name the object as MODEL@K, K = 1, 2, ... from the left (position@2)")
+    return base.strip(), int(k)
 
 
 def format_observe(spec: str | Mapping[str, str] | None) -> str | None:

@@ -19,7 +19,8 @@ class PerStateObservation(MeasuredObservation):
     def __init__(self, parts: Mapping[str, ObservationModel], states: Sequence[str]):
         super().__init__()
         check_states(dict(parts), list(states))
-        self.name = format_observe({s: parts[s].name for s in states})
+        self.name = format_observe({s: parts[s].name + (f"@{parts[s].object}" if parts[s].object else "")
+                                    for s in states})
         free = [f"{s}={parts[s].name}" for s in states if not parts[s].measured]
         if free:
             raise ConfigError(f"observe {self.name}: {', '.join(free)} reads a free latent from the whole frame, which "

@@ -113,7 +113,15 @@ class PositionObservation(MeasuredObservation):
         out = ObservationModel.prepare(self, frames, architecture, fit_frames)  # the components the checks score against
         xy, pixels, unseen, _ = centroids(frames, fit_frames)
         where, disagree = "", ""
-        if self.track is not None and len(self.track) == frames.shape[0]:
+        if self.object is not None:  # one object of several: the shrunk frames' centroid is the strongest's
+            if self.track is None or len(self.track) != frames.shape[0]:
+                raise ConfigError(f"{self.name}@{self.object}: the reader has no track of the objects (a video file "
+                                  "or a folder of frames gives one)")
+            unseen = self.track.unseen
+            if unseen < frames.shape[0]:
+                xy, pixels = torch.from_numpy(self.track.filled()).to(frames.device), self.track.area
+                where = f"the reader's track of {self.track.note.split(';')[0]}: "
+        elif self.track is not None and len(self.track) == frames.shape[0]:
             # the reader's track, at the source's resolution, where it runs as the frames' own
             # centroids do, or jumps less than they do: a track that jumps to something else (a
             # hand, the floor) is worse than the shrunk frames' coarser but whole view of the

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fitode.errors import ConfigError
+
 
 @dataclass
 class Track:
@@ -22,6 +24,9 @@ class Track:
     area: float
     factor: int
     note: str
+    # the moving objects' paths (T, 2) from left to right (fitode.video.track.objects), for the
+    # states that name their object (`position@2`); xy is the strongest path's
+    objects: tuple[np.ndarray, ...] = ()
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])
@@ -45,4 +50,16 @@ class Track:
 
     def head(self, n: int) -> "Track":
         """The first n frames (a trimmed or strided clip's track follows its frames)."""
-        return Track(self.xy[:n], self.area, self.factor, self.note)
+        return Track(self.xy[:n], self.area, self.factor, self.note, tuple(p[:n] for p in self.objects))
+
+    def object(self, k: int) -> "Track":
+        """The track of the k-th moving object from the left (1-based); ConfigError where fewer
+        are in view."""
+        if not 1 <= k <= len(self.objects):
+            raise ConfigError(f"object {k} is asked for, but the tracker sees {len(self.objects)} moving object"
+                              f"{'s' if len(self.objects) != 1 else ''} in view for at least half the clip")
+        path = self.objects[k - 1]
+        seen = np.isfinite(path[:, 0])
+        note = (f"object {k} of {len(self.objects)} from the left (about x = {float(np.nanmedian(path[:, 0])):.0f} "
+                f"pixels), in view in {int(seen.sum())} of {len(path)} frames; {self.note}")
+        return Track(path, self.area, self.factor, note, self.objects)
