@@ -404,7 +404,10 @@ def _refit(system, params, x: np.ndarray, dt: float, best: Mapping[str, float], 
         combos = [tuple(1.0 for _ in names)] + [combos[i] for i in keep]
     starts = [{**dict(mapped), **{n: float(best[n]) * m for n, m in zip(names, combo)}} for combo in combos]
     if len(starts) > 1:
-        scored = sorted(((trajectory_misfit(system, params, x, dt, v, **options), i) for i, v in enumerate(starts)))
+        # the starts are ranked on windows (a direct fit's segments): cheap, and a far start still rolls out
+        ranking = {"integrator": options["integrator"], "substeps": options["substeps"],
+                   "windows": options.get("windows") or options.get("segments")}
+        scored = sorted(((trajectory_misfit(system, params, x, dt, v, **ranking), i) for i, v in enumerate(starts)))
         starts = [starts[i] for v, i in scored[:2] if math.isfinite(v)]
     fits = [f for f in (fit_trajectory(system, params, x, dt, v, **options) for v in starts) if f is not None]
     return min(fits, key=lambda f: f.misfit) if fits else None
