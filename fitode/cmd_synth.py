@@ -10,6 +10,8 @@ Each writes the video (.mp4 or .npy) and <stem>.truth.json beside it.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
 from pathlib import Path
 
 from fitode.errors import FitodeError
@@ -59,6 +61,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                          "sway_omega distractors; throw: flight range radius rest_before rest_after)")
     sc.add_argument("--duration", type=float, default=None, help="seconds (default: the scene's)")
     sc.add_argument("--fps", type=float, default=60.0, help="frames per second (default 60)")
+    sc.add_argument("--store-fps", type=float, default=None, metavar="F",
+                    help="the frame rate the file says (a phone stores its 240 fps slow motion at 30; "
+                         "default: --fps); fit it with --fps at the filmed rate")
     from fitode.video import parse_size
     sc.add_argument("--size", type=parse_size, default="480x270", metavar="WxH",
                     help="frame size, width x height in pixels (default 480x270)")
@@ -103,6 +108,10 @@ def run(args: argparse.Namespace) -> int:
         v = synth.scene(args.name, args.setting, seed=args.seed, duration=args.duration, fps=args.fps,
                         size=args.size, noise=args.noise, jpeg_quality=args.jpeg_quality,
                         **_pairs(args.param, "--param"))
+        if args.store_fps is not None:
+            if not (args.store_fps > 0 and math.isfinite(args.store_fps)):
+                raise FitodeError(f"--store-fps must be a positive number, got {args.store_fps:g}")
+            v = dataclasses.replace(v, dt=1.0 / args.store_fps)
     synth.write_video(v, out)
     consts = ", ".join(f"{k} = {val:.6g}" for k, val in v.truth.items())
     print(f"wrote {out} ({v.n_frames} frames, {v.size[1]}x{v.size[0]}, dt = {v.dt:.6g} s) "
