@@ -195,3 +195,17 @@ def test_two_oscillators_fitted_as_a_system_each_from_its_own_object(tmp_path):
     result = fitode.fit(str(path), eq="a'' = -k1*a; b'' = -k2*b", observe="a=position@1;b=position@2", stride=1)
     assert result.parameters["k1"].value == pytest.approx(25.0, rel=0.01)
     assert result.parameters["k2"].value == pytest.approx(9.0, rel=0.01)
+
+
+def test_a_fast_swing_sampled_coarsely_keeps_its_turns_and_loses_its_strays():
+    from fitode.train.observe.angle import _mended_off_the_arc
+
+    t = np.arange(120) * 0.2
+    theta = np.radians(120) * np.exp(-0.04 * t) * np.cos(2.0 * t)  # the paper's motion: 0.4 rad a frame
+    xy = np.column_stack([25 + 20 * np.sin(theta), 25 + 20 * np.cos(theta)])
+    kept, mended = _mended_off_the_arc(xy, len(xy))
+    assert mended == 0 and np.array_equal(kept, xy)
+    strayed = xy.copy()
+    strayed[40] = [3.0, 3.0]  # something else, off the arc
+    kept, mended = _mended_off_the_arc(strayed, len(xy))
+    assert mended == 1 and np.hypot(*(kept[40] - xy[40])) < 5

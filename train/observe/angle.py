@@ -9,7 +9,7 @@ from fitode.errors import ConfigError
 
 from .base import MeasuredObservation, ObservationModel, Prepared
 from .circle import Circle, fit_circle
-from .tracking import MENDED_MAX, centroids, mend_strays
+from .tracking import MEND_PIXELS, MEND_SIGMAS, MENDED_MAX, centroids, mend_strays
 
 BENDS = 2.0  # sagitta over scatter under which a path does not bend about any centre (ConfigError)
 # the share by which a loosely fitted pivot may move a constant, from which it is a caution: an
@@ -50,7 +50,7 @@ class AngleObservation(MeasuredObservation):
         n = int(frames.shape[0])
         n_fit = n if fit_frames is None else int(fit_frames)
         xy, where = self.path(frames, fit_frames)
-        xy, mended = mend_strays(xy, n_fit)
+        xy, mended = _mended_off_the_arc(xy, n_fit)
         circle = fit_circle(xy[:n_fit])
         if circle is None or circle.bend < BENDS:
             bend = "lies on a line" if circle is None else f"bows {circle.sagitta:.2g} pixels, {circle.bend:.1f}x its scatter"
@@ -97,6 +97,23 @@ class AngleObservation(MeasuredObservation):
             raise ConfigError(f"the angle observation sees no change from the median frame in {unseen} of "
                               f"{frames.shape[0]} frames; trim the clip to the motion (--start/--end)")
         return xy.double().cpu().numpy(), f"the centroid of what differs most from the static scene ({pixels:.0f} pixels)"
+
+
+def _mended_off_the_arc(xy: np.ndarray, n_fit: int) -> tuple[np.ndarray, int]:
+    """The track with its strays read from their neighbours (mend_strays), but only those off the
+    arc the whole path lies on (the robust circle of the unmended path, MEND_SIGMAS of its scatter
+    and MEND_PIXELS away): a fast swing sampled coarsely (the paper's motion video, 15 pixels a
+    frame) misses the local parabolas at its turns, and reading those frames from their neighbours
+    would cut the corners of a right path; something else in view is off the arc."""
+    mended, count = mend_strays(xy, n_fit)
+    arc = fit_circle(np.asarray(xy)[:n_fit]) if count else None
+    if arc is None:
+        return mended, count
+    raw = np.asarray(xy, dtype=np.float64)
+    off = np.abs(np.hypot(raw[:, 0] - arc.centre[0], raw[:, 1] - arc.centre[1]) - arc.radius)
+    keep = np.any(mended != raw, axis=1) & (off <= max(MEND_SIGMAS * arc.scatter, MEND_PIXELS))
+    mended = np.where(keep[:, None], raw, mended)
+    return mended, count - int(keep.sum())
 
 
 def angles(xy: np.ndarray, circle: Circle, n_fit: int | None = None) -> tuple[np.ndarray, float]:
