@@ -168,9 +168,10 @@ def follow(found: dict[int, list[tuple[float, float, float, float]]], length: in
 
     A frame's strongest change is not always the object: something crossing the view (a person,
     a ball carried past) can outweigh it for a while. The path is the one through the frames'
-    candidates that jumps least and is strongest (a Viterbi pass): a step costs its length over
-    the object's own motion from frame to frame, squared; a candidate costs the log of how much
-    weaker it is than the frame's strongest. A jump to something else and back costs far more than
+    candidates that jumps least and is strongest (a Viterbi pass): a step costs by how much its
+    length exceeds the object's own motion from frame to frame (in units of that motion), squared,
+    so that a fast swing costs nothing; a candidate costs RANK for each place it stands below the
+    frame's strongest. A jump to something else and back costs far more than
     following a weaker object for a while. Each further object is the same pass over the
     candidates the earlier paths left."""
     frames = sorted(t for t in found if found[t])
@@ -207,16 +208,19 @@ def _viterbi(found, frames, taken, local) -> dict[int, int]:
         if not opts:
             back.append(np.zeros(0, int))
             continue
-        strongest = max(found[t][0][3], 1e-12)
-        unary = np.array([math.log(strongest / max(found[t][j][3], 1e-12)) for j in opts])
+        # the candidates' masses come from thresholds of their own (each the strongest of what the
+        # earlier ones left), so only their order compares: each place down it costs RANK
+        unary = RANK * np.array(opts, dtype=np.float64)
         xy = np.array([found[t][j][:2] for j in opts])
         if cost_prev is None:
             cost, arg = unary, np.zeros(len(opts), int)
         else:
             gap = t - last_t
             scale = local[i] * gap
-            d2 = ((xy[:, None, :] - prev_xy[None, :, :]) ** 2).sum(axis=2) / scale ** 2
-            total = cost_prev[None, :] + d2
+            # a step within the object's own motion is free (a swing is fast at the bottom, still
+            # at its turns); beyond it, the excess costs, squared
+            reach = np.sqrt(((xy[:, None, :] - prev_xy[None, :, :]) ** 2).sum(axis=2)) / scale
+            total = cost_prev[None, :] + np.maximum(reach - 1.0, 0.0) ** 2
             arg = np.argmin(total, axis=1)
             cost = unary + total[np.arange(len(opts)), arg]
         back.append(arg)
@@ -235,6 +239,7 @@ def _viterbi(found, frames, taken, local) -> dict[int, int]:
 
 CANDIDATES = 4  # the strongest changes each frame keeps for the path to choose from
 WEAKEST = 0.02   # a candidate's least mass, as a share of the frame's strongest
+RANK = 1.0       # what following the frame's k-th strongest candidate costs a frame, per place down
 
 
 def _candidates(frame: np.ndarray, background: np.ndarray, noise: float) -> list[tuple[float, float, float, float]]:
