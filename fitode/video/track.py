@@ -180,13 +180,11 @@ def follow(found: dict[int, list[tuple[float, float, float, float]]], length: in
     first = np.array([found[t][0][:2] for t in frames])
     steps = np.hypot(*np.diff(first, axis=0).T) / np.maximum(np.diff(frames), 1) if len(frames) > 1 else np.zeros(0)
     size = math.sqrt(max(float(np.median([found[t][0][2] for t in frames])), 1.0))
-    # the object's own motion per frame: the strongest candidates' typical step, locally (an
-    # object that speeds up), and never under a quarter of its size
+    # the object's own motion per frame: the strongest candidates' typical step over the whole
+    # clip (a local one would be a crossing thing's while it outweighs the object), and never
+    # under a quarter of its size
     base = max(2.0 * float(np.median(steps)) if len(steps) else 1.0, 0.25 * size, 1.0)
     local = np.full(len(frames), base)
-    if len(steps) >= 7:
-        med = np.array([np.median(steps[max(0, i - 3):i + 4]) for i in range(len(steps))])
-        local[1:] = np.maximum(base, 2.0 * med)
     paths: list[dict[int, int]] = []
     taken: dict[int, set[int]] = {t: set() for t in frames}
     for _ in range(objects):
