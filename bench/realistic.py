@@ -170,6 +170,7 @@ def fit_video(task: dict[str, Any]) -> dict[str, Any]:
         out.update(status=rep.get("status"), estimate=rep["parameters"][q]["value"],
                    std_restarts=rep["parameters"][q]["std"], raw=res.parameters[q].latent_value if res.parameters[q].calibrated else res.parameters[q].value,
                    calibrated=bool(rep["parameters"][q].get("calibrated")),
+                   latent_units=bool(rep["parameters"][q].get("latent_units")),
                    frames=int(len(res.time)), dt=float(res.dt), stride=rep.get("input", {}).get("stride"),
                    runs=[{"init": r.init, "final": r.final, "steps": r.steps, "converged": r.converged,
                           "status": r.status, "loss": r.loss, "wall_s": r.wall_s} for r in res.runs],

@@ -142,19 +142,31 @@ def fit_affine(points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.
 
 def scale_uncertainty(points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.ndarray,
                       states: Sequence[str], maps: Mapping[str, AffineMap]) -> dict[str, float]:
-    """The relative standard deviation of each map's scale a from the points' uncertainties:
-    the least-squares a is linear in the values, so its variance is the values' variances
-    carried through the fit's weights (0 where no point carries an uncertainty)."""
+    """The relative standard deviation of each map's scale a: from the points' uncertainties
+    (the least-squares a is linear in the values, so its variance is the values' variances
+    carried through the fit's weights), and from the latent's own reading at the points (the
+    local quadratic's standard error there, local_std: a noisy measured latent at a clip's end,
+    where points are usually put, moves the whole scale; the fall's 30 frames: 2.5%), carried
+    through a's derivative with respect to each reading."""
     time = np.asarray(time, dtype=float)
     out: dict[str, float] = {}
     for state, m in maps.items():
         col = list(states).index(state)
+        column = np.asarray(latent, dtype=float)[:, col]
         mine = [p for p in points if p.state == state]
-        z = np.array([local_value(time, np.asarray(latent, dtype=float)[:, col], p.time) for p in mine])
+        z = np.array([local_value(time, column, p.time) for p in mine])
+        values = np.array([p.value for p in mine])
         A = np.stack([z, np.ones_like(z)], axis=1)
         weights = np.linalg.pinv(A)[0]  # a = weights @ values
-        sd = float(np.sqrt(np.sum((weights * np.array([p.std for p in mine])) ** 2)))
-        out[state] = sd / abs(m.a) if m.a else math.inf
+        var = float(np.sum((weights * np.array([p.std for p in mine])) ** 2))
+        for i, p in enumerate(mine):
+            sd = local_std(time, column, p.time)
+            if sd > 0:
+                moved = z.copy()
+                moved[i] += sd
+                a = float(np.linalg.pinv(np.stack([moved, np.ones_like(z)], axis=1))[0] @ values)
+                var += (a - m.a) ** 2
+        out[state] = math.sqrt(var) / abs(m.a) if m.a else math.inf
     return out
 
 
@@ -179,6 +191,26 @@ def local_value(time: np.ndarray, z: np.ndarray, at: float) -> float:
     centre = t.mean()
     coef = np.polyfit(t - centre, y, 2)
     return float(np.polyval(coef, at - centre))
+
+
+def local_std(time: np.ndarray, z: np.ndarray, at: float) -> float:
+    """The standard error of local_value: the quadratic's leverage at `at` times the latent's
+    scatter about a quadratic over twice as many frames (a few more degrees of freedom than
+    the reading's own seven frames leave); 0 where the clip is too short to tell."""
+    n = len(time)
+    if n < 4 * LOCAL_HALF_WIDTH + 1 or not np.all(np.isfinite(z)):
+        return 0.0
+    i = int(np.clip(np.searchsorted(time, at), 0, n - 1))
+    lo, hi = max(0, i - LOCAL_HALF_WIDTH), min(n, i + LOCAL_HALF_WIDTH + 1)
+    centre = time[lo:hi].mean()
+    design = np.vander(time[lo:hi] - centre, 3)
+    x0 = np.vander(np.array([at - centre]), 3)[0]
+    leverage = float(x0 @ np.linalg.pinv(design.T @ design) @ x0)
+    lo, hi = max(0, i - 2 * LOCAL_HALF_WIDTH), min(n, i + 2 * LOCAL_HALF_WIDTH + 1)
+    tw, zw = time[lo:hi] - time[lo:hi].mean(), z[lo:hi]
+    resid = zw - np.polyval(np.polyfit(tw, zw, 2), tw)
+    scatter = math.sqrt(float(resid @ resid) / max(len(tw) - 3, 1))
+    return scatter * math.sqrt(max(leverage, 0.0))
 
 
 @dataclass

@@ -127,3 +127,14 @@ def test_a_finding_that_names_one_constant_leaves_the_others_alone():
         r.final["w"] = 2.0
     a = assess(res, {**_analysis(), "w": _analysis()["k"]}, extra=[Finding("ambiguous", "slow", ("k",))])
     assert a.verdicts["k"].verdict == "ambiguous" and a.verdicts["w"].verdict == "trusted"
+
+
+def test_a_trusted_number_keeps_its_promise_of_five_percent_at_99():
+    # 95% half width 3.5%: 4.6% at 99%, within the promise; 4%: 5.3% at 99%, beyond it
+    narrow = _result([_run(0, 4.0), _run(1, 4.0)])
+    narrow.parameters["k"].interval = [4.0 * 0.965, 4.0 * 1.035]
+    assert _judged(narrow).verdicts["k"].verdict == "trusted"
+    wide = _result([_run(0, 4.0), _run(1, 4.0)])
+    wide.parameters["k"].interval = [4.0 * 0.99, 4.0 * 1.04]  # the larger side decides
+    v = _judged(wide).verdicts["k"]
+    assert v.verdict == "ambiguous" and "pins it only to +-4%" in v.reason and "5%" in v.reason

@@ -108,3 +108,20 @@ def test_the_verdict_hears_the_held_out_quarter():
     worse = _judged({"held_out": 7.0})
     assert worse.verdict == "ambiguous" and "last quarter" in worse.reason
     assert _judged(None).verdict == "ambiguous"
+
+
+def test_a_calibration_carries_the_latents_own_reading_at_its_points():
+    # a noisy latent: the scale's uncertainty grows with the scatter at the points, with no
+    # uncertainty typed into the points
+    from fitode.calibrate import local_std
+    t = np.linspace(0, 2, 41)
+    rng = np.random.default_rng(0)
+    two = [CalibrationPoint("h", 0.0, 1.0), CalibrationPoint("h", 2.0, 5.0)]
+    clean = scale_uncertainty(two, t, (2 * t)[:, None], ["h"], {"h": AffineMap(1.0, 1.0, 2)})
+    assert clean["h"] == pytest.approx(0.0, abs=1e-9)
+    rel = [scale_uncertainty(two, t, (2 * t + rng.normal(0, s, t.size))[:, None], ["h"], {"h": AffineMap(1.0, 1.0, 2)})["h"]
+           for s in (0.01, 0.1)]
+    assert 0 < rel[0] < rel[1] and 3 < rel[1] / rel[0] < 30
+    draws = [2 * t + rng.normal(0, 0.1, t.size) for _ in range(30)]
+    end, middle = (np.mean([local_std(t, z, at) for z in draws]) for at in (2.0, 1.0))
+    assert end > 1.5 * middle  # an end is read from one side only
