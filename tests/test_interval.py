@@ -125,3 +125,21 @@ def test_a_calibration_carries_the_latents_own_reading_at_its_points():
     draws = [2 * t + rng.normal(0, 0.1, t.size) for _ in range(30)]
     end, middle = (np.mean([local_std(t, z, at) for z in draws]) for at in (2.0, 1.0))
     assert end > 1.5 * middle  # an end is read from one side only
+
+
+def test_a_measurement_scale_moves_only_what_depends_on_the_amplitude():
+    # a linear oscillator's constants do not change when the path is rescaled; a large swing's
+    # L does (its period grows with the amplitude), so the angle's scale error is its share
+    rng = np.random.default_rng(2)
+    x = _oscillation(4.0, 0.1) + _ar1(rng, T, 0.0, 1e-4)
+    boot = iv.bootstrap(OSC, {}, x, DT, {"w2": 4.0, "c": 0.1}, iterations=16)
+    assert abs(boot.scaling["w2"]) < 1e-3
+    pend = parse("theta'' = -9.80665/L*sin(theta)")
+    t = np.arange(200) * 0.02
+    big = 0.8 * np.cos(np.sqrt(9.80665) * t * (1 - 0.8 ** 2 / 16))[:, None] + _ar1(rng, 200, 0.0, 1e-3)  # 46 degrees
+    pb = iv.bootstrap(pend, {}, big, 0.02, {"L": 1.0}, iterations=16)
+    assert pb.scaling["L"] < -0.05  # a larger amplitude read for the same period: a shorter L
+    plain = iv.combine(pb.values["L"], pb, "L")
+    wide = iv.combine(pb.values["L"], pb, "L", scale_std=0.01)
+    assert wide.shares["scale"] == pytest.approx(abs(pb.scaling["L"]) * 0.01, rel=1e-6)
+    assert wide.high - wide.low > plain.high - plain.low

@@ -18,6 +18,10 @@ The estimate is a set of constants for which one trajectory of the equation foll
   and a relative uncertainty of the frame rate (rate_std: the container's nominal rate, or 0 for
   a rate the user gave) adds its share.
 - the calibration points (fitode.calibrate: value +- std), added by the caller as a relative share.
+- the measurement's own scale. An angle about a fitted pivot is read with the pivot's
+  uncertainty: the circle's radius, and so every angle, is uncertain by a relative standard error
+  (meta["measurement"]["scale_error"]); the refit of the path scaled by SCALE_STEP gives each
+  constant's sensitivity (a large swing's L moves with the amplitude, a small one's not at all).
 - the restarts of a free latent: the spread of the kept restarts, widened by RESTART_WIDEN (few
   restarts say little of their own spread), the gap between the reported value and the one
   trajectory's (the training's windows see less than the whole clip), and what the latent's
@@ -44,6 +48,7 @@ ITERATIONS = 48  # refits, all in one batch
 REFIT_ITERATIONS = 4  # chord (Gauss-Newton) steps per refit, from the one trajectory: the noise moves it little
 CENTRE_ITERATIONS = 12  # Gauss-Newton steps from the estimate to the one trajectory
 TIME_STEP = 0.001  # dt stretched by 0.1% to read each constant's sensitivity to the frame rate
+SCALE_STEP = 0.001  # the path scaled by 0.1% to read each constant's sensitivity to the measurement's scale
 RESTART_WIDEN = 2.0
 # a learned (free) latent can bend where the frames do not hold it, which no residual shows (the
 # bundled example's L 0.29% off with its restarts agreeing to 0.002%, the paper's motion video's g1
@@ -98,13 +103,14 @@ class Bootstrap:
     residual_rms: list[float]  # per state, in the path's units
     held_out: float | None = None  # the held-out prediction's miss over the residuals there (_held_out)
     bend: dict[str, float] = field(default_factory=dict)  # the constants' RMS change under BEND-sized bends
+    scaling: dict[str, float] = field(default_factory=dict)  # d constant / d log(the path's scale)
 
     def to_dict(self) -> dict:
         return {"method": "moving-block bootstrap of the one trajectory's residuals", "block": self.block,
                 "iterations": self.iterations, "kept": self.kept, "t_quantile": self.quantile,
                 "wall_s": self.wall_s, "trajectory": dict(self.values), "std": dict(self.std),
                 "dlog_dt": dict(self.timing), "misfit": self.misfit, "residual_rms": list(self.residual_rms),
-                "held_out": self.held_out, "bend": dict(self.bend)}
+                "held_out": self.held_out, "bend": dict(self.bend), "dlog_scale": dict(self.scaling)}
 
 
 def correlation(residuals: np.ndarray) -> float:
@@ -276,7 +282,7 @@ class _Batch:
         """Refits of many targets near the centre's trajectory (N, T, k) from the centre (1, p):
         Gauss-Newton steps with the centre's Jacobian kept (the chord method: a refit moves
         little, and one Jacobian for every refit makes each step one rollout per refit, not
-        p + 1). A step that raises a refit's misfit is taken back and the refit stops there; a
+        p + 1). A step that raises a refit's misfit (by more than rounding) is taken back and the refit stops there; a
         refit whose first step already does is NaN, as is one whose rollout fails: the centre's
         linearisation does not reach its target (a learned latent with residuals of a fifth of
         its spread sent a pendulum's refits to L = 4000 for 0.3, and the interval to +-28000)."""
@@ -291,7 +297,7 @@ class _Batch:
             now = np.mean(r ** 2, axis=1)
             now = np.where(np.isfinite(now), now, np.inf)
             if before is not None:
-                worse = ~frozen & (now > cost)
+                worse = ~frozen & (now > cost * (1 + 1e-3) + 1e-300)  # not a rounding's rise at the optimum
                 theta[worse], now[worse] = before[worse], cost[worse]
                 lost |= worse & (it == 1)
                 frozen |= worse
@@ -334,6 +340,7 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
         if len(draws) < max(2, MIN_KEPT * iterations):
             return None
         stretched = batch.gauss_newton(centre, batch.roll(centre, dt * (1 + TIME_STEP)), refit_iterations)
+        scaled = batch.chord(centre, fitted[None] * (1 + SCALE_STEP), refit_iterations)
         held_out = _held_out(system, params, x, dt, centre, integrator, substeps)
         bend = bends(batch, centre, fitted, refit_iterations) if learned else {}
     except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError, FitodeError):
@@ -344,13 +351,15 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
     # the same path read with a longer dt: the constants that make the stretched-time rollout
     # match it, i.e. the constants' sensitivity to the frame rate (a pure power of time or not)
     timing = {n: float((centre[0, i] - stretched[0, i]) / math.log1p(TIME_STEP)) for i, n in enumerate(names)}
+    scaling = {n: float((scaled[0, i] - centre[0, i]) / math.log1p(SCALE_STEP)) for i, n in enumerate(names)
+               if math.isfinite(scaled[0, i])}
     return Bootstrap(values={n: float(centre[0, i]) for i, n in enumerate(names)},
                      std={n: float(s) for n, s in zip(names, spread)}, timing=timing, block=block,
                      iterations=iterations, kept=len(draws), quantile=t_quantile(level, len(draws) - 1),
                      wall_s=time.perf_counter() - began,
                      misfit=float(np.sqrt(np.mean((resid * batch.weight) ** 2))),
                      residual_rms=[float(v) for v in np.sqrt(np.mean(resid ** 2, axis=0))],
-                     held_out=held_out, bend=bend)
+                     held_out=held_out, bend=bend, scaling=scaling)
 
 
 def bends(batch: _Batch, centre: np.ndarray, fitted: np.ndarray, iterations: int) -> dict[str, float]:
@@ -392,10 +401,11 @@ def _held_out(system, params: Mapping, x: np.ndarray, dt: float, centre: np.ndar
 
 
 def combine(value: float, boot: Bootstrap | None, name: str, *, rate_std: float = 0.0, relative: float = 0.0,
-            restarts: float = 0.0, gap: float = 0.0, encoder: bool = False, level: float = LEVEL) -> Interval | None:
+            restarts: float = 0.0, gap: float = 0.0, encoder: bool = False, scale_std: float = 0.0,
+            level: float = LEVEL) -> Interval | None:
     """One constant's interval about `value` from the bootstrap's shares and the caller's:
-    rate_std (relative std of the frame rate), relative (a relative std from elsewhere: the
-    calibration), restarts (the kept restarts' std, widened here), encoder (add the bends'
+    rate_std (relative std of the frame rate), scale_std (relative std of the measurement's
+    scale: an angle's pivot), relative (a relative std from elsewhere: the calibration), restarts (the kept restarts' std, widened here), encoder (add the bends'
     share: a learned latent) and gap (a difference between two estimates of the same constant,
     added as a bias). None without a bootstrap."""
     from statistics import NormalDist
@@ -404,8 +414,10 @@ def combine(value: float, boot: Bootstrap | None, name: str, *, rate_std: float 
     z = NormalDist().inv_cdf(0.5 + level / 2)
     scale = abs(value) / max(abs(boot.values[name]), 1e-300) if boot.values[name] else 1.0
     timing = abs(boot.timing.get(name, 0.0)) * scale * rate_std
+    measure = abs(boot.scaling.get(name, 0.0)) * scale * scale_std
     shares = {"residuals": boot.std[name] * scale * boot.quantile / z,  # as a normal std with the t's width
               "timing": timing if math.isfinite(timing) else 0.0,
+              "scale": measure if math.isfinite(measure) else 0.0,
               "calibration": abs(value) * relative,
               "restarts": RESTART_WIDEN * restarts,
               "encoder": math.hypot(boot.bend.get(name, 0.0) * scale, ENCODER_FLOOR * abs(value)) if encoder else 0.0}
@@ -434,6 +446,8 @@ def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
                      integrator=str(settings.get("integrator", "rk4")), substeps=int(settings.get("substeps", 1)))
     out: dict[str, Interval] = {}
     own = set(result.meta.get("own_units", ()))
+    scale_std = float((result.meta.get("measurement") or {}).get("scale_error") or 0.0)
+    scale_std = scale_std if math.isfinite(scale_std) else 0.0
     for name, est in result.parameters.items():
         if boot is None or name not in boot.values:
             continue
@@ -442,7 +456,7 @@ def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
         gap = (path_value - boot.values[name]) * ratio
         restarts = est.std if est.n_runs > 1 and name not in own else 0.0
         iv = combine(est.value, boot, name, rate_std=rate_std, relative=(calibration or {}).get(name, 0.0),
-                     restarts=restarts, gap=gap, encoder=learned)
+                     restarts=restarts, gap=gap, encoder=learned, scale_std=scale_std)
         if iv is not None:
             out[name] = iv
     return out, boot

@@ -81,7 +81,8 @@ class AngleObservation(MeasuredObservation):
         else:
             track, space = [[float(x), float(y)] for x, y in xy], "frames"
         return {"kind": self.name, "space": space, "states": states, "track": track,
-                "pivot": [circle.centre[0], circle.centre[1]], "radius": circle.radius, "hanging": float(hang)}
+                "pivot": [circle.centre[0], circle.centre[1]], "radius": circle.radius, "hanging": float(hang),
+                "scale_error": float(circle.radius_error) if np.isfinite(circle.radius_error) else None}  # every angle's relative uncertainty (the interval's share)
 
     def path(self, frames: torch.Tensor, fit_frames: int | None) -> tuple[np.ndarray, str]:
         """(T, 2) where the object is, and one line on where that came from."""
