@@ -205,7 +205,11 @@ def test_coverage_list_is_fixed_covers_every_case_and_counts_as_defined():
     import coverage
     first, again = coverage.clip_list(list(coverage.CASES), 0), coverage.clip_list(list(coverage.CASES), 0)
     assert first == again and len(first) >= 40
-    assert {t["case"] for t in first[: len(coverage.CASES)]} == set(coverage.CASES)
+    here = set(coverage.CASES) - set(coverage.missing_cases())
+    assert {t["case"] for t in first[: len(here)]} == here
+    assert "led-linear" in here and any(t["scene_kwargs"].get("curve") == "linear" for t in first if "scene" in t)
+    latent = {"truth": 1.0, "estimate": 1.0, "interval": [0.9, 1.1], "verdict": "not trustworthy", "latent_units": True}
+    assert not coverage.judge(latent)["covered"] and not coverage.judge(latent)["has_interval"]
     trusted_far = {"truth": 1.0, "estimate": 1.08, "interval": [1.0, 1.16], "verdict": "trusted"}
     right_doubted = {"truth": 1.0, "estimate": 1.01, "interval": [0.99, 1.03], "verdict": "ambiguous"}
     outside_99 = {"truth": 1.0, "estimate": 1.03, "interval": [1.02, 1.04], "verdict": "trusted"}
