@@ -3,7 +3,9 @@ predicts stretches of the measured path it was not fitted on (fitode.train.cross
 
 The clip is read once. The first candidate is planned and fitted as a single equation would be
 (its observation model, the stretch of the clip one trajectory explains); every other candidate
-is then fitted on the same frames, read by the same observation model, on the same stretch. The
+is then fitted on the same frames, read by the same observation model, on its own stretch; then
+every candidate whose stretch is not the widest span any of them explains is fitted again on
+that span, so that none is scored only on the part of the clip it happens to fit. The
 blocked cross-validation of every candidate runs on one measured path (each candidate reads it in
 its own gauge, as its fit did), so the held-out errors are in one unit: the path as measured, not
 as one candidate's perspective re-read it (the position observation's re-reading is fitted with
@@ -112,23 +114,49 @@ def compare(requests: Sequence, frames, dt: float, *, track=None, time_offset: f
     if not first.result.meta.get("direct"):
         why = first.result.meta.get("direct_failed")
         raise FitodeError(FREE_LATENT + (f" (the measured path could not be fitted: {why})" if why else ""))
-    st = first.result.meta["stretch"]
-    stretch = (int(st["start_frame"]), int(st["end_frame"]))
-    for i, c in enumerate(cands[1:], start=2):
-        say(f"candidate {i} of {len(cands)}: {c.equation}")
+    own = {0: _stretch_of(first.result)}
+    for i, c in enumerate(cands[1:], start=1):
+        say(f"candidate {i + 1} of {len(cands)}: {c.equation}")
         try:
             observe = _observe_like(first.plan.observation, first.request.system.states, c.request.system.states)
-            req = replace(c.request, observe=observe, observe_source="the first candidate's, for the comparison")
-            c.plan = api.plan(req, frames, dt, track=track)
-            c.result = api.execute(req, c.plan, frames, stretch=stretch, **options)
-            c.request = req
+            c.request = replace(c.request, observe=observe, observe_source="the first candidate's, for the comparison")
+            c.plan = api.plan(c.request, frames, dt, track=track)
+            c.result = api.execute(c.request, c.plan, frames, **options)
         except FitodeError as exc:
             c.error = str(exc)
             continue
         if not c.result.meta.get("direct"):
             c.error, c.result = "its measured path could not be fitted directly", None
             continue
-        c.result.meta["stretch"] = {**st, "source": "the first candidate's, for the comparison"}
+        own[i] = _stretch_of(c.result)
+    # every candidate is scored on the span that any of them explains: a wrong equation's own
+    # stretch is the part it happens to fit (a linear pendulum on a 50-degree swing keeps only the
+    # small late swings, where the sine cannot be told from it)
+    stretch = (min(a for a, _ in own.values()), max(b for _, b in own.values()))
+    widest = max(own, key=lambda i: own[i][1] - own[i][0])
+    st = dict(cands[widest].result.meta["stretch"])
+    if own[widest] != stretch:
+        st.update(start_frame=stretch[0], end_frame=stretch[1],
+                  start_s=min(float(cands[i].result.meta["stretch"]["start_s"]) for i in own),
+                  end_s=max(float(cands[i].result.meta["stretch"]["end_s"]) for i in own),
+                  reason="the span the candidates' own stretches cover together")
+    st["source"] = "the widest any candidate explains, for the comparison"
+    for i, c in enumerate(cands):
+        if i not in own:
+            continue
+        if own[i] != stretch:
+            say(f"candidate {i + 1} of {len(cands)} again, on frames {stretch[0]}-{stretch[1] - 1}: {c.equation}")
+            try:
+                c.result = api.execute(c.request, c.plan, frames, stretch=stretch, **options)
+            except FitodeError as exc:
+                c.error, c.result = str(exc), None
+                continue
+            if not c.result.meta.get("direct"):
+                c.error, c.result = "its measured path could not be fitted directly", None
+                continue
+        c.result.meta["stretch"] = dict(st)
+    if first.result is None:
+        raise FitodeError(f"the first candidate could not be fitted on the comparison's stretch: {first.error}")
     # the path every candidate is scored on: as measured, not as a candidate's perspective re-read it
     # (a fall without drag re-read through a perspective bends the drag away: scored on its own
     # bent path it would win), so the first candidate whose fit read it straight gives it
@@ -204,6 +232,11 @@ def _held_out(c: CandidateFit, x: np.ndarray, blocks: int):
     if not math.isfinite(held.error):
         return held, "a held-out fit left the equation's domain"
     return held, None
+
+
+def _stretch_of(result) -> tuple[int, int]:
+    st = result.meta["stretch"]
+    return int(st["start_frame"]), int(st["end_frame"])
 
 
 def _failed(blocks: int, stretch: tuple[int, int]):

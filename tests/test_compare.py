@@ -135,6 +135,42 @@ def _compared(frames, dt, eqs, **kw) -> dict:
     return comparison
 
 
+def test_every_candidate_is_scored_on_the_widest_stretch_any_of_them_explains(monkeypatch):
+    # a wrong equation's own stretch is the part of the clip it happens to fit (a linear pendulum
+    # on a 50-degree swing kept frames 82-149 of 150); scored there, nothing told the two apart
+    from types import SimpleNamespace
+
+    from fitode import api, compare as cmp
+
+    class Scored(Exception):
+        pass
+
+    class Result(SimpleNamespace):
+        @property
+        def latent(self):
+            raise Scored  # the stretches are settled once the scoring reads the path
+
+    own = {LINEAR: (82, 150), PENDULUM: (0, 150)}
+    calls = []
+
+    def execute(req, plan, frames, stretch=None, **_):
+        calls.append((req.equation, stretch))
+        a, b = stretch or own[req.equation]
+        return Result(meta={"direct": True, "stretch": {"start_frame": a, "end_frame": b, "start_s": a / 30,
+                                                         "end_s": b / 30, "reason": "r", "source": "found"}},
+                      checks={})
+
+    observation = SimpleNamespace(measured=True, name="angle")
+    monkeypatch.setattr(api, "plan", lambda req, *a, **k: SimpleNamespace(observation=observation))
+    monkeypatch.setattr(api, "execute", execute)
+    requests = [SimpleNamespace(equation=eq, system=parse(eq), observe=None, observe_source=None)
+                for eq in (LINEAR, PENDULUM)]
+    monkeypatch.setattr(cmp, "replace", lambda req, **kw: SimpleNamespace(**{**vars(req), **kw}))
+    with pytest.raises(Scored):
+        cmp.compare(requests, np.zeros((150, 1, 4, 4), np.float32), 1 / 30)
+    assert calls == [(LINEAR, None), (PENDULUM, None), (LINEAR, (0, 150))]
+
+
 @pytest.mark.slow
 def test_a_50_degree_swing_prefers_the_sine():
     comparison = _compared(*_swing(50)[:2], [LINEAR, PENDULUM])
