@@ -126,3 +126,53 @@ def test_a_slide_between_rests_gives_a_without_start_or_end():
     assert stretch["start_frame"] > phys["rest_before_frames"] // 2
     assert stretch["end_frame"] < len(s) - phys["rest_after_frames"] // 2
     assert res.verdicts["a"]["verdict"] == "trusted"
+
+
+def test_mended_frames_count_only_on_the_frames_fitted():
+    from fitode.train.observe.tracking import mended_caution
+
+    scattered = list(range(40, 100, 3))  # 20 frames inside the motion, apart
+    assert "20 of 150 fitted frames" in mended_caution(scattered, 0, 150)
+    assert mended_caution(scattered, 100, 250) is None  # none of the fitted frames
+    assert mended_caution(scattered, 70, 250) is None  # 10 of 180: few
+    # a run at an end of the fitted frames (a ball one blob with the hand that lets it go, the real
+    # drop's frames 2-11 of 82) is where the motion meets something, not a stray inside it
+    assert mended_caution(list(range(2, 12)), 0, 82) is None
+    assert mended_caution(list(range(72, 82)), 0, 82) is None
+    assert mended_caution(list(range(2, 12)) + list(range(30, 40)), 0, 82) is not None  # and strays within
+    assert "30 of 82" in mended_caution(list(range(30)), 0, 82)  # many: over a quarter
+
+
+def _slide_with_a_hand(seed: int = 1):
+    """The slide between rests of test_a_slide_between_rests_gives_a_without_start_or_end, with a
+    bright disk (a hand) flashing at a random place in every other frame of the rest before it:
+    those frames' centroids leave the block's path and are read from their neighbours."""
+    from fitode.synth.scenes import scene
+
+    v = scene("sliding_block", 30, fps=240, size=(90, 160), rest_before=0.4, rest_after=0.3, seed=seed)
+    frames = v.frames.copy()
+    yy, xx = np.mgrid[:frames.shape[1], :frames.shape[2]]
+    rng = np.random.default_rng(seed)
+    for i in range(1, v.meta["physical"]["rest_before_frames"] - 2, 2):
+        cy, cx = rng.uniform(20, 70), rng.uniform(110, 150)  # away from the resting block
+        frames[i][(yy - cy) ** 2 + (xx - cx) ** 2 < 144] = 255
+    return v, frames
+
+
+@pytest.mark.slow
+def test_a_hand_before_the_slide_leaves_the_fit_trusted():
+    import fitode
+    from fitode.train.observe.tracking import MENDED_MAX
+
+    v, frames = _slide_with_a_hand()
+    s, phys = v.state[:, 0], v.meta["physical"]
+    i, j = phys["rest_before_frames"] + 10, len(s) - phys["rest_after_frames"] - 10
+    res = fitode.fit(frames, v.dt, eq="x'' = a", observe="position", progress=False,
+                     calibrate=f"x({i * v.dt:.6f})={s[i]:.6f}; x({j * v.dt:.6f})={s[j]:.6f}")
+    mended = res.meta["measurement"]["mended"]
+    assert len(mended) > MENDED_MAX * len(s)  # counted on the whole clip, a caution
+    first, last = res.meta["stretch"]["start_frame"], res.meta["stretch"]["end_frame"]
+    assert res.meta["stretch"]["source"] == "found" and first > phys["rest_before_frames"] // 2
+    assert sum(first <= m < last for m in mended) <= MENDED_MAX * (last - first)
+    assert res.values["a"] == pytest.approx(phys["a"], rel=0.03)
+    assert res.verdicts["a"]["verdict"] == "trusted", res.checks["findings"]

@@ -25,6 +25,7 @@ from .config import TrainConfig
 from .consistency import one_trajectory_check, whole_clip_check
 from .loop import Callback, StepInfo, Trained, encode_all, train_restarts
 from .observe import ObservationModel
+from .observe.tracking import mended_caution
 from .perspective import perspective_check
 from .plan import FitPlan
 from .result import Estimate, FitResult, RunRecord
@@ -138,6 +139,9 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
                                      observation=observation)
     if prepared.caution:
         findings.append(Finding("ambiguous", prepared.caution))
+    mended = mended_caution(prepared.mended, first, last)
+    if mended:
+        findings.append(Finding("ambiguous", mended))
     findings.extend(other_findings)
     if observation.applies("trajectory") and not interrupted:
         holds, numbers["whole_clip"] = whole_clip_check(system, params, states[best, span], dt,

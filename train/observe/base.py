@@ -49,6 +49,10 @@ class Prepared:
     # along its line of motion: the reading across it), (T,) in the taken column's units, and
     # what it is ("across the line of motion"); the trainer fits it too and compares
     other: tuple[torch.Tensor, str] | None = None
+    # the frames whose reading left the path of their neighbours and was read from them
+    # (tracking.mend): the trainer weighs them on the frames it fits (tracking.mended_caution),
+    # not on the whole clip, where a hand before a release would count against the fall
+    mended: tuple[int, ...] = ()
 
     def in_order(self, states: Sequence[str]) -> "Prepared":
         """The measured columns in the equation's state order, checked: a model may measure its

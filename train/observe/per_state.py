@@ -49,7 +49,7 @@ class PerStateObservation(MeasuredObservation):
         return False if check == "perspective" else super().applies(check)
 
     def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
-        columns, notes, cautions, components, drawings = [], [], [], None, []
+        columns, notes, cautions, components, drawings, mended = [], [], [], None, [], set()
         for state, model in self.parts.items():
             one = model.prepare(frames, architecture, fit_frames)
             if tuple(one.inputs.shape[1:]) != (1, 1, 1):
@@ -59,11 +59,12 @@ class PerStateObservation(MeasuredObservation):
             notes.append(f"{state}: {one.note}")
             if one.caution:
                 cautions.append(f"{state}: {one.caution}")
+            mended.update(one.mended)
             components = one.components if components is None else components
             drawings.append((state, one.drawing))
         inputs = torch.stack(columns, dim=1).reshape(len(columns[0]), len(columns), 1, 1)
         return Prepared(inputs, components, len(columns), "; ".join(notes), "; ".join(cautions) or None,
-                        tuple(self.parts), _merged(self.name, drawings))
+                        tuple(self.parts), _merged(self.name, drawings), mended=tuple(sorted(mended)))
 
     def describe(self) -> str:
         return "; ".join(f"{s}: {m.describe()}" for s, m in self.parts.items())

@@ -10,7 +10,7 @@ from fitode.errors import ConfigError
 
 from .base import MeasuredObservation, ObservationModel, Prepared
 from .drawing import points, record
-from .tracking import MENDED_MAX, centroids, line_of_motion, mend
+from .tracking import centroids, line_of_motion, mend
 
 
 AXES = {"x": "x", "y": "y", "h": "y", "z": "y"}  # a state named so reads that image axis (y, h, z: up)
@@ -26,16 +26,13 @@ def axis_of(state: str) -> str | None:
     return AXES.get(state)
 
 
-def _mended(note: str, mended: int, n_fit: int) -> tuple[str, str | None]:
-    """The note and caution for frames whose centroid left the path of their neighbours."""
-    caution = None
+def _mended(note: str, mended: int) -> str:
+    """The note for frames whose centroid left the path of their neighbours (the caution is the
+    trainer's, counted on the frames it fits: tracking.mended_caution)."""
     if mended:
         note += (f"; {mended} frame{'s' if mended != 1 else ''} whose centroid left the path of "
                  f"{'their' if mended != 1 else 'its'} neighbours read from them")
-        if mended > MENDED_MAX * n_fit:
-            caution = (f"{mended} of {n_fit} frames had a centroid off the path of their neighbours and were read "
-                       "from them: something else changes in the view as much as the object; give --roi around it")
-    return note, caution
+    return note
 
 
 def _agreement(track: torch.Tensor, coarse: torch.Tensor, fit_frames: int | None) -> float:
@@ -169,12 +166,12 @@ class PositionObservation(MeasuredObservation):
         angle = float(torch.rad2deg(torch.atan2(direction[1], direction[0]))) % 180
         note = (f"position: {where}the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
                 f"average), along its line of motion ({angle:.0f} degrees from the image's x axis), read linearly")
-        note, caution = _mended(note, mended, n_fit)
-        drawing = record(self.name, reading="line", track=points(xy),
-                         mended=[int(i) for i in torch.nonzero(path != raw).flatten()] if mended else None,
+        note = _mended(note, mended)
+        frames = tuple(int(i) for i in torch.nonzero(path != raw).flatten())
+        drawing = record(self.name, reading="line", track=points(xy), mended=list(frames) if mended else None,
                          line={"point": [float(v) for v in xy[:n_fit].mean(dim=0)],
                                "direction": [float(v) for v in direction]})
-        prepared = self.column(z.to(dtype), components, note, caution, drawing)
+        prepared = replace(self.column(z.to(dtype), components, note, None, drawing), mended=frames)
         across = self._across(xy, direction, n_fit, path[:n_fit].std().clamp_min(1e-6))
         if across is not None:
             prepared.other = (across.to(dtype), "across the line of motion")
@@ -201,19 +198,22 @@ class PositionObservation(MeasuredObservation):
               pixels: float, where: str, dtype: torch.dtype) -> Prepared:
         """One column per state, each the image axis its name says (x across, y/h/z up), so that
         `y'' = -g` reads the height of a throw, not its flight's main direction (the horizontal)."""
-        columns, total = [], 0
+        columns, total, frames = [], 0, set()
         for axis in axes:
             coordinate = xy[:, 0] if axis == "x" else -xy[:, 1]  # image y points down
-            coordinate, mended = mend(coordinate - coordinate[:n_fit].mean(), n_fit)
+            raw = coordinate - coordinate[:n_fit].mean()
+            coordinate, mended = mend(raw, n_fit)
             total += mended
+            frames.update(int(i) for i in torch.nonzero(coordinate != raw).flatten())
             columns.append(coordinate / coordinate[:n_fit].std().clamp_min(1e-6))
         named = ", ".join(f"{s} {'across' if a == 'x' else 'up'}" for s, a in zip(states, axes))
         note = (f"position: {where}the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
                 f"average), each state read along the image axis its name says ({named}), linearly")
-        note, caution = _mended(note, total, n_fit)
+        note = _mended(note, total)
         inputs = torch.stack(columns, dim=1).to(dtype).reshape(len(columns[0]), len(columns), 1, 1)
-        drawing = record(self.name, track=points(xy), states={s: a for s, a in zip(states, axes)})
-        return Prepared(inputs, components, len(columns), note, caution, states, drawing)
+        drawing = record(self.name, track=points(xy), states={s: a for s, a in zip(states, axes)},
+                         mended=sorted(frames) if frames else None)
+        return Prepared(inputs, components, len(columns), note, None, states, drawing, mended=tuple(sorted(frames)))
 
     def reread(self, prepared: Prepared, state: np.ndarray, perspective: dict, fit_frames: int) -> Prepared | None:
         """The path read through the camera's perspective that perspective.perspective_check found on a

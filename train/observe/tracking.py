@@ -8,6 +8,8 @@ for a rigid object in view on a static background, whatever its shape, colour or
 """
 from __future__ import annotations
 
+from typing import Sequence
+
 import numpy as np
 import torch
 
@@ -16,6 +18,8 @@ CORE = 0.7
 MEND_SPAN = 21  # frames around each frame whose running median a one-way path is checked against
 MEND_SIGMAS = 6.0
 MEND_PIXELS = 1.0
+EDGE_MAX = 0.25  # a run of mended frames at an end of the fitted frames, up to this share of them, is not counted
+EDGE_GAP = 3  # ... its frames apart by at most this many
 MENDED_MAX = 0.1  # a larger share of mended frames is a finding: the centroid is not the object's
 
 
@@ -50,6 +54,35 @@ def centroids(frames: torch.Tensor, fit_frames: int | None = None) -> tuple[torc
             xy[t] = xy[t - 1]
     pixels = float((heat > 0).sum(dim=(1, 2)).double().mean())
     return xy, pixels, int((~seen).sum()), heat.flatten(1).max(dim=1).values
+
+
+def mended_caution(mended: Sequence[int], first: int, last: int) -> str | None:
+    """The caution for the frames read from their neighbours (mended: frame indices) among the
+    frames fitted, [first, last), where they are more than MENDED_MAX of them; None otherwise.
+    Frames outside are not the fit's (a hand before the release, a bounce after the fall), and
+    neither is a run of them at an end of the fitted frames, up to EDGE_MAX of them: that is the
+    object meeting something where its motion starts or stops (a ball one blob with the hand that
+    lets it go), read from the frames next to it; whether the rest follow one trajectory is the
+    consistency checks' to say."""
+    inside = sorted(i for i in set(mended) if first <= i < last)
+    span = max(last - first, 1)
+    edge = _edge_run(inside, first, 1) + _edge_run(inside[::-1], last - 1, -1)
+    counted = len(inside) - edge if edge <= EDGE_MAX * span else len(inside)
+    if counted <= MENDED_MAX * span:
+        return None
+    return (f"{counted} of {span} fitted frames had a centroid off the path of their neighbours and were read from "
+            "them: something else changes in the view as much as the object; give --roi around it")
+
+
+def _edge_run(frames: Sequence[int], end: int, way: int) -> int:
+    """How many of the mended frames (sorted from `end` inward, way +1 or -1) form a run at that
+    end of the fitted frames: the first within EDGE_GAP frames of it, each next within EDGE_GAP."""
+    count, at = 0, end - way
+    for i in frames:
+        if abs(i - at) > EDGE_GAP:
+            break
+        count, at = count + 1, i
+    return count
 
 
 def mend_one_way(path: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Tensor, int]:
