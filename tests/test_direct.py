@@ -53,15 +53,6 @@ def test_one_trajectory_everywhere_is_the_whole_path():
     assert "first frame" in found.why_start and "last frame" in found.why_end
 
 
-def test_a_path_that_never_rests_is_cut_where_a_hand_moves_in_front_of_it():
-    t = np.arange(400) * DT
-    x = 300 * t ** 2 + np.random.default_rng(1).normal(0, 0.2, 400)
-    x[:60] += 20.0 * np.sin(np.arange(60) / 6.0)  # a hand in view for the first 60 frames, the path never still
-    found = find_stretch(x[:, None], DT, _parabola_fit(t, x))
-    assert 55 <= found.start <= 80 and found.end == 400
-    assert "does not follow" in found.why_start
-
-
 def test_rest_and_noise_are_read_from_the_path():
     t, x = _rest_slide_rest(noise=0.5)
     slow = 0.5 * np.random.default_rng(3).normal(size=2000) + np.sin(np.arange(2000) * DT)  # smooth motion + noise
