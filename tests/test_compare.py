@@ -172,6 +172,7 @@ def test_every_candidate_is_scored_on_the_widest_stretch_any_of_them_explains(mo
 
 
 @pytest.mark.slow
+@pytest.mark.long
 def test_a_50_degree_swing_prefers_the_sine():
     comparison = _compared(*_swing(50)[:2], [LINEAR, PENDULUM])
     assert comparison["preferred"] == PENDULUM, comparison["reason"]
@@ -182,6 +183,7 @@ def test_a_50_degree_swing_prefers_the_sine():
 
 
 @pytest.mark.slow
+@pytest.mark.long
 def test_a_5_degree_swing_cannot_tell():
     frames, dt, observe = _swing(5)
     comparison = _compared(frames, dt, [PENDULUM, LINEAR], observe=observe)
@@ -190,6 +192,7 @@ def test_a_5_degree_swing_cannot_tell():
 
 
 @pytest.mark.slow
+@pytest.mark.long
 def test_a_fall_with_strong_drag_prefers_the_drag():
     # y up (a state named y reads the image's vertical, upwards): the drag pulls up, -k*y'*|y'| > 0
     dt = 1 / 60
@@ -202,6 +205,7 @@ def test_a_fall_with_strong_drag_prefers_the_drag():
 
 
 @pytest.mark.slow
+@pytest.mark.long
 def test_a_draining_tank_prefers_torricelli():
     dt = 1 / 15
     h = _path("h' = -k*sqrt(h)", {"k": 0.05}, {"h": 0.23}, 200, dt, 0.0)[:, 0]

@@ -151,6 +151,7 @@ def _slide_with_a_hand(seed: int = 1):
 
 
 @pytest.mark.slow
+@pytest.mark.long
 def test_a_hand_before_the_slide_leaves_the_fit_trusted():
     import fitode
     from fitode.train.observe.tracking import MENDED_MAX

@@ -118,6 +118,7 @@ def test_a_measured_latent_is_held_to_its_own_period_not_the_frames():
 
 
 @pytest.mark.slow
+@pytest.mark.long
 def test_a_generated_spring_with_a_ball_crossing_gives_w2_with_no_flag(tmp_path):
     v = synth.scene("spring", 18.0, fps=30, duration=10, size=(180, 240), seed=2)
     path = synth.write_video(v, tmp_path / "spring.mp4")
@@ -128,6 +129,7 @@ def test_a_generated_spring_with_a_ball_crossing_gives_w2_with_no_flag(tmp_path)
 
 
 @pytest.mark.slow
+@pytest.mark.long
 def test_a_throw_filmed_at_240_fps_gives_g_read_up_and_flags_a_reading_along_the_flight(tmp_path):
     v = synth.scene("throw", fps=240, size=(240, 320), seed=1)
     path = synth.write_video(dataclasses.replace(v, dt=1 / 30), tmp_path / "throw.mp4")  # stored at 30
@@ -185,6 +187,7 @@ def test_each_state_reads_the_object_it_names():
 
 
 @pytest.mark.slow
+@pytest.mark.long
 def test_two_oscillators_fitted_as_a_system_each_from_its_own_object(tmp_path):
     import cv2
 

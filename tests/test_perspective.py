@@ -63,6 +63,7 @@ def test_a_fall_read_up_is_turned_to_run_down_as_its_equation_says():
 
 
 @pytest.mark.slow
+@pytest.mark.long
 def test_a_fall_with_strong_drag_gives_k_side_on_and_no_perspective_bend(tmp_path):
     import fitode
     from fitode.synth import scene, write_video
