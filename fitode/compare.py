@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -121,14 +121,11 @@ def compare(requests: Sequence, frames, dt: float, *, track=None, time_offset: f
             observe = _observe_like(first.plan.observation, first.request.system.states, c.request.system.states)
             c.request = replace(c.request, observe=observe, observe_source="the first candidate's, for the comparison")
             c.plan = api.plan(c.request, frames, dt, track=track)
-            c.result = api.execute(c.request, c.plan, frames, **options)
         except FitodeError as exc:
             c.error = str(exc)
             continue
-        if not c.result.meta.get("direct"):
-            c.error, c.result = "its measured path could not be fitted directly", None
-            continue
-        own[i] = _stretch_of(c.result)
+        if _fit(c, frames, options):
+            own[i] = _stretch_of(c.result)
     # every candidate is scored on the span that any of them explains: a wrong equation's own
     # stretch is the part it happens to fit (a linear pendulum on a 50-degree swing keeps only the
     # small late swings, where the sine cannot be told from it)
@@ -136,9 +133,7 @@ def compare(requests: Sequence, frames, dt: float, *, track=None, time_offset: f
     widest = max(own, key=lambda i: own[i][1] - own[i][0])
     st = dict(cands[widest].result.meta["stretch"])
     if own[widest] != stretch:
-        st.update(start_frame=stretch[0], end_frame=stretch[1],
-                  start_s=min(float(cands[i].result.meta["stretch"]["start_s"]) for i in own),
-                  end_s=max(float(cands[i].result.meta["stretch"]["end_s"]) for i in own),
+        st.update(start_frame=stretch[0], end_frame=stretch[1], start_s=stretch[0] * dt, end_s=stretch[1] * dt,
                   reason="the span the candidates' own stretches cover together")
     st["source"] = "the widest any candidate explains, for the comparison"
     for i, c in enumerate(cands):
@@ -146,13 +141,7 @@ def compare(requests: Sequence, frames, dt: float, *, track=None, time_offset: f
             continue
         if own[i] != stretch:
             say(f"candidate {i + 1} of {len(cands)} again, on frames {stretch[0]}-{stretch[1] - 1}: {c.equation}")
-            try:
-                c.result = api.execute(c.request, c.plan, frames, stretch=stretch, **options)
-            except FitodeError as exc:
-                c.error, c.result = str(exc), None
-                continue
-            if not c.result.meta.get("direct"):
-                c.error, c.result = "its measured path could not be fitted directly", None
+            if not _fit(c, frames, options, stretch):
                 continue
         c.result.meta["stretch"] = dict(st)
     if first.result is None:
@@ -232,6 +221,21 @@ def _held_out(c: CandidateFit, x: np.ndarray, blocks: int):
     if not math.isfinite(held.error):
         return held, "a held-out fit left the equation's domain"
     return held, None
+
+
+def _fit(c: CandidateFit, frames, options: Mapping, stretch: tuple[int, int] | None = None) -> bool:
+    """Fit candidate c by its plan (on `stretch`, None: the one it finds), keeping its result, or
+    its error where it fails or its measured path could not be fitted directly."""
+    from fitode import api
+    try:
+        c.result = api.execute(c.request, c.plan, frames, stretch=stretch, **options)
+    except FitodeError as exc:
+        c.error, c.result = str(exc), None
+        return False
+    if not c.result.meta.get("direct"):
+        c.error, c.result = "its measured path could not be fitted directly", None
+        return False
+    return True
 
 
 def _stretch_of(result) -> tuple[int, int]:
