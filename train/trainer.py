@@ -180,8 +180,7 @@ def _other_reading(prepared, plan: FitPlan, gauges, fit, stretch: tuple[int, int
     x = column.reshape(-1, 1).double().cpu().numpy()
     taken = prepared.inputs.reshape(prepared.inputs.shape[0], -1)[:plan.n_train, 0].double().cpu().numpy()
     if not plan.observation.physical_units:  # in the units _measured_latent gave the taken reading
-        mean, std = plan.prior
-        x = mean + std * (x - x[:plan.n_train].mean()) / max(float(taken.std()), 1e-12)
+        x = _prior_units(x, plan, float(taken.std()))
     first, last = stretch
     inits = restart_inits(system, plan.params, config.restarts, config.seed, plan.init)
     seeds = [config.seed * 1000 + i for i in range(len(inits))]
@@ -227,9 +226,14 @@ def _measured_latent(prepared, plan: FitPlan) -> np.ndarray:
     x = prepared.inputs.reshape(prepared.inputs.shape[0], -1).double().cpu().numpy()
     if plan.observation.physical_units:
         return x
+    return _prior_units(x, plan, x[:plan.n_train].std(axis=0))
+
+
+def _prior_units(x: np.ndarray, plan: FitPlan, spread) -> np.ndarray:
+    """x (T, k) centred on its training frames' mean and set at the prior's mean and spread,
+    `spread` of x counting as one prior spread."""
     mean, std = plan.prior
-    part = x[:plan.n_train]
-    return mean + std * (x - part.mean(axis=0)) / np.maximum(part.std(axis=0), 1e-12)
+    return mean + std * (x - x[:plan.n_train].mean(axis=0)) / np.maximum(spread, 1e-12)
 
 
 def _measured_fit(prepared, plan: FitPlan, gauges, stretch: tuple[int, int] | None = None):
