@@ -83,19 +83,19 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
     from fitode.pipeline import rate_std
     rate = rate_std(fps) if clip is not None else 0.0  # an array's dt is the user's
     track = None if clip is None else clip.track
+    plan = api.plan(req, x, dt, track=track)
+    if clip is not None:  # as `fitode VIDEO` reads it: light decoded from sRGB is read again in colour
+        from fitode.pipeline import light_in_colour
+        clip, time_offset, plan = light_in_colour(frames_path, _read_options(video), req, clip, time_offset, plan,
+                                                  progress=progress)
+        x, track = api.as_frames(clip.frames), clip.track
     if len(reqs) > 1:
         from fitode.compare import compare
         comparison = compare(reqs, x, dt, track=track, time_offset=time_offset, callback=callback, progress=progress,
-                             rate_std=rate)
+                             rate_std=rate, first_plan=plan)
         result = comparison.result
         result.meta["comparison"] = comparison.to_dict()
     else:
-        plan = api.plan(req, x, dt, track=track)
-        if clip is not None:
-            from fitode.pipeline import light_in_colour
-            clip, time_offset, plan = light_in_colour(frames_path, _read_options(video), req, clip, time_offset, plan,
-                                                      progress=progress)
-            x = api.as_frames(clip.frames)
         result = api.execute(req, plan, x, time_offset=time_offset, callback=callback, progress=progress,
                              rate_std=rate)
     if clip is not None:  # what was measured, in the video's pixels as `fitode VIDEO` writes it
