@@ -194,6 +194,8 @@ def complete_report(report: dict[str, Any], result, analysis, t0: float = 0.0) -
     """Fill the estimates, runs, trajectory, calibration and the assessment's verdicts and warnings
     of a finished fit into report. It only formats: every judgement is the assessment's."""
     units = report["equation"].get("units", {})
+    if "settings" in report:  # what the fit resolved after the plan: the integrator's steps per frame
+        report["settings"] = _plain_settings({**report["settings"], **result.settings})
     params: dict[str, Any] = {}
     for name, est in result.parameters.items():
         params[name] = {"value": est.value, "std": est.std, "n_runs": est.n_runs, "unit": est.unit or units.get(name),
@@ -267,6 +269,9 @@ def run_lines(result) -> list[str]:
     if result.meta.get("stretch"):
         lines.insert(1 if result.meta.get("subspace") else 0, stretch_line(result.meta["stretch"], len(result.time),
                                                                           result.meta.get("input", {}).get("t0", 0.0)))
+    steps = result.checks.get("integrator") or {}
+    if int(steps.get("substeps", 1)) > 1 or not steps.get("settled", True):
+        lines.insert(len(lines) - len(result.runs), f"integrator: {steps['reason']}")
     wall = max((r.wall_s for r in result.runs), default=0.0)
     how = "fitted directly to the measured path" if result.meta.get("direct") else "trained together"
     lines.append(f"           (* best run, + also averaged into the estimate; {len(result.runs)} restarts "

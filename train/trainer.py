@@ -33,6 +33,7 @@ from .score import dominant_period, separation_score
 from .selection import select_runs, selection
 from .starts import CANDIDATES, data_starts
 from .direct import full_fit, fit_path, fitted_path, orientation, screen
+from .steps import settle_substeps
 from .stretch import MIN_SEED, find_stretch
 from .trajectory import SEGMENT, fit_trajectory, long_options
 from .findings import Finding
@@ -93,10 +94,21 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
     coefs = prepared.components[:n_train]  # the training frames' leading principal components
     perspective = straight = None  # straight: one trajectory over the best run's state, for both checks
     extra_meta: dict = {}
+    integration = None  # the steps per frame a measured path needs (steps.py)
     direct_failed = None
     if _measured_columns(prepared) and observation.applies("direct"):  # measured: fit the path itself, no encoder
         try:
-            fit, perspective, straight, prepared, extra_meta = _measured_fit(prepared, plan, gauges, stretch)
+            measured = prepared
+            fit, perspective, straight, prepared, extra_meta = _measured_fit(measured, plan, gauges, stretch)
+            first, last = extra_meta["stretch"]["start_frame"], extra_meta["stretch"]["end_frame"]
+            with _threads(config.threads):
+                steps = settle_substeps(system, params, fit.latents[fit.best, first:last], dt, straight,
+                                        gauge=gauges, integrator=config.integrator, substeps=config.substeps)
+            if steps.substeps != config.substeps:  # the steps the path needs, read by everything after
+                plan = replace(plan, config=replace(config, substeps=steps.substeps))
+                config = plan.config
+                fit, perspective, straight, prepared, extra_meta = _measured_fit(measured, plan, gauges, stretch)
+            integration = {**steps.to_dict(), "reason": steps.reason(config.integrator)}
         except TrainingError as exc:
             # no restart's trajectory followed the path (a learned scale that runs off, a path of
             # noise): the encoder's training is the slower, older way to the same constants
@@ -153,6 +165,8 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
         findings.extend(slow)
     if perspective is not None:
         numbers["perspective"] = perspective
+    if integration is not None:
+        numbers["integrator"] = integration
     return FitResult(
         parameters=estimates, runs=records, selected=selected, best=best,
         latent=latents[best], rollout=rollouts[best], time=np.arange(n_total) * dt, train_frames=n_train, dt=dt,
