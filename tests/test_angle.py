@@ -146,3 +146,30 @@ def test_a_large_generated_swing_gives_L_with_no_flag(tmp_path):
     assert result.meta["physical_units"]  # read as an angle, in radians
     assert result.parameters["L"].value == pytest.approx(0.5, rel=0.01)
     assert result.verdicts["L"]["verdict"] == "trusted"
+
+
+def _decaying_arc(rng, n=200, drift=0.0, noise=1.0, radius=500.0):
+    """A damped swing's points about a pivot above the frame, with white noise and a miss that
+    drifts in time (AR(1), lag-one correlation 0.97, drift pixels)."""
+    t = np.arange(n) * 0.1
+    theta = 0.35 * np.exp(-0.15 * t) * np.cos(2.5 * t)
+    xy = np.column_stack([300 + radius * np.sin(theta), -200 + radius * np.cos(theta)])
+    e, s = np.zeros((n, 2)), np.zeros(2)
+    for i in range(n):
+        s = 0.97 * s + rng.normal(0, drift * np.sqrt(1 - 0.97 ** 2), 2)
+        e[i] = s
+    return xy + e + rng.normal(0, noise, (n, 2))
+
+
+@pytest.mark.parametrize("drift", [0.0, 3.0])
+def test_the_radius_error_is_the_radius_spread_over_many_swings(drift):
+    # white misses: the error is the spread, not three times it (a fixed ten points per
+    # independent miss made it 3.4x); misses that drift in time while the swing decays bend the
+    # arc: the error grows with them (the jackknife over stretches of time)
+    rng = np.random.default_rng(0)
+    fits = [fit_circle(_decaying_arc(rng, drift=drift)) for _ in range(30)]
+    off = np.array([c.radius / 500 - 1 for c in fits])
+    err = np.array([c.radius_error for c in fits])
+    spread = float(np.sqrt(np.mean(off ** 2)))
+    assert 0.6 * spread <= float(np.median(err)) <= 2.0 * spread
+    assert np.mean(np.abs(off) <= 2 * err) >= 0.85

@@ -15,9 +15,11 @@ import numpy as np
 
 ROUNDS = 3  # geometric refinements, each with the loss's scale from the last one's residuals
 SOFT = 2.0  # the soft-L1 loss turns linear from this many robust standard deviations
-# neighbouring frames' misses hang together (a blur, a shadow, a slanted swing): the radius's
-# standard error counts one independent miss per this many points
+# neighbouring frames' misses hang together (a blur, a shadow, a slanted swing): a bend's
+# significance counts one independent miss per this many points
 CORRELATED = 10
+JACKKNIFE_BLOCKS = 8  # stretches of time the radius's jackknife leaves out in turn
+JACKKNIFE_MIN = 8  # points per stretch below which there is no jackknife (a path of under 64 points)
 
 
 @dataclass(frozen=True)
@@ -31,7 +33,7 @@ class Circle:
     scatter: float
     sagitta: float
     span: float  # the angle the path covers about the centre, radians
-    radius_error: float = np.inf  # the radius's relative standard error (misses hanging together over CORRELATED points)
+    radius_error: float = np.inf  # the radius's relative standard error (radius_error())
 
     points: int = 0  # how many points it was fitted to
 
@@ -76,11 +78,27 @@ def algebraic_circle(xy: np.ndarray) -> tuple[np.ndarray, float] | None:
 
 def fit_circle(xy: np.ndarray) -> Circle | None:
     """The circle (T, 2) points bend about, fitted robustly; None where they lie on a line (or
-    are too few: under 5)."""
-    from scipy.optimize import least_squares
-
+    are too few: under 5). The points in time order (a track): the radius's error leaves out
+    stretches of time in turn (radius_error)."""
     xy = np.asarray(xy, dtype=np.float64)
     xy = xy[np.isfinite(xy).all(axis=1)]
+    got = _geometric(xy)
+    if got is None:
+        return None
+    centre, radius, scale, jac = got
+    angles = np.unwrap(np.arctan2(xy[:, 1] - centre[1], xy[:, 0] - centre[0]))
+    lo, hi = np.percentile(angles, [1, 99])  # a stray frame does not widen the span
+    span = float(hi - lo)
+    sagitta = radius * (1 - np.cos(min(span, 2 * np.pi) / 2)) if span < np.pi else radius
+    error = radius_error(xy, centre, radius, scale, jac)
+    return Circle((float(centre[0]), float(centre[1])), radius, scale, float(sagitta), span, error, len(xy))
+
+
+def _geometric(xy: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray | None] | None:
+    """The robust geometric fit of finite points (T, 2): centre, radius, the robust scatter and the
+    last round's Jacobian (None where no round gave a finite fit); None where they lie on a line."""
+    from scipy.optimize import least_squares
+
     if len(xy) < 5:
         return None
     start = algebraic_circle(xy)
@@ -101,18 +119,42 @@ def fit_circle(xy: np.ndarray) -> Circle | None:
             break
         params, jac = fit.x, fit.jac
         scale = _robust_std(distances(params))
-    centre, radius = params[:2] + mean, abs(float(params[2]))
-    angles = np.unwrap(np.arctan2(xy[:, 1] - centre[1], xy[:, 0] - centre[0]))
-    lo, hi = np.percentile(angles, [1, 99])  # a stray frame does not widen the span
-    span = float(hi - lo)
-    sagitta = radius * (1 - np.cos(min(span, 2 * np.pi) / 2)) if span < np.pi else radius
+    return params[:2] + mean, abs(float(params[2])), scale, jac
+
+
+def radius_error(xy: np.ndarray, centre: np.ndarray, radius: float, scale: float, jac: np.ndarray | None) -> float:
+    """The radius's relative standard error, the larger of two readings of how the misses hang
+    together (inf where neither can be made):
+    - along the arc: least squares' error (the Jacobian's, times the scatter) widened by the
+      misses' correlation time along the arc, (1 + r) / (1 - r) for the lag-one correlation r of
+      the distances sorted by angle: a slanted swing or a bob whose look turns with the angle
+      misses the circle alike at neighbouring places, however far apart in time;
+    - in time: a delete-a-block jackknife over JACKKNIFE_BLOCKS stretches of the path: a miss that
+      drifts in time (a bob that twists, a pivot that sways) while the swing decays and covers
+      less of the arc bends the arc it is read on.
+    A fixed count of CORRELATED points per independent miss made the real apple's radius 9.2%
+    uncertain, where its jackknife says 2.1% and its misses along the arc 3.2%."""
+    from fitode.train.interval import correlation
+
     error = np.inf
     if jac is not None:
         try:
-            error = float(np.sqrt(np.linalg.inv(jac.T @ jac)[2, 2] * CORRELATED) * scale / max(radius, 1e-12))
+            d = np.hypot(xy[:, 0] - centre[0], xy[:, 1] - centre[1]) - radius
+            order = np.argsort(np.arctan2(xy[:, 1] - centre[1], xy[:, 0] - centre[0]))
+            r = correlation(d[order][:, None])
+            error = float(np.sqrt(np.linalg.inv(jac.T @ jac)[2, 2] * (1 + r) / (1 - r)) * scale / max(radius, 1e-12))
         except np.linalg.LinAlgError:
             pass
-    return Circle((float(centre[0]), float(centre[1])), radius, scale, float(sagitta), span, error, len(xy))
+    n, g = len(xy), JACKKNIFE_BLOCKS
+    if n < JACKKNIFE_MIN * g:
+        return error
+    edges = np.linspace(0, n, g + 1).astype(int)
+    left = [_geometric(np.delete(xy, np.s_[edges[k]:edges[k + 1]], axis=0)) for k in range(g)]
+    if any(f is None for f in left):
+        return error
+    radii = np.array([f[1] for f in left])
+    jack = float(np.sqrt((g - 1) / g * np.sum((radii - radii.mean()) ** 2))) / max(radius, 1e-12)
+    return max(error, jack) if np.isfinite(error) else jack
 
 
 def _robust_std(r: np.ndarray) -> float:
