@@ -173,3 +173,33 @@ def test_the_radius_error_is_the_radius_spread_over_many_swings(drift):
     spread = float(np.sqrt(np.mean(off ** 2)))
     assert 0.6 * spread <= float(np.median(err)) <= 2.0 * spread
     assert np.mean(np.abs(off) <= 2 * err) >= 0.85
+
+
+def test_a_pivot_moved_by_its_uncertainty_is_read_as_the_angles_about_it():
+    # a 120-degree decaying swing about a pivot whose height is uncertain by 0.05 pixels: the
+    # moves are the angles read again about the moved pivot, and the damping they move is what
+    # a pivot off by that much does to it (the interval's geometry share)
+    from fitode.train import interval as iv
+    from fitode.train.observe.angle import pivot_moves
+    from fitode.train.trajectory import fit_trajectory
+    system = parse("z'' + g1*z' + g0*z = 0")
+    t = np.arange(240) * 0.2
+    theta = 2.1 * np.exp(-0.02 * t) * np.cos(1.5 * t)
+    pivot, radius = np.array([24.5, 24.5]), 20.0
+    xy = np.column_stack([pivot[0] + radius * np.sin(theta), pivot[1] + radius * np.cos(theta)])
+    drawing = {"kind": "angle", "pivot": pivot.tolist(), "radius": radius, "hanging": np.pi / 2,
+               "track": xy.tolist(), "pivot_cov": [[1e-6, 0.0], [0.0, 0.05 ** 2]]}
+    x = theta[:, None]  # the image's angle runs the other way (x right, y down): the reader's sense need not be it
+    moves = pivot_moves(x, drawing, (0, len(t)))
+    assert len(moves) == 2
+    about = np.arctan2(xy[:, 1] - pivot[1] - 0.05, xy[:, 0] - pivot[0])  # the pivot 0.05 pixels lower
+    change = np.angle(np.exp(-1j * (about - np.pi / 2 + x[:, 0])))  # about it, read in the reader's sense
+    vertical = moves[int(np.argmax([np.abs(m).max() for m in moves]))][:, 0]
+    assert np.allclose(np.abs(vertical), np.abs(change - change.mean()), atol=1e-5)
+    truth = {"g0": 1.5 ** 2 + 0.02 ** 2, "g1": 0.04}
+    boot = iv.bootstrap(system, {}, x + np.random.default_rng(0).normal(0, 1e-4, x.shape), 0.2, truth,
+                        iterations=16, substeps=4, moves=moves)
+    off = fit_trajectory(system, {}, x + vertical[:, None], 0.2, truth, substeps=4, solver="lm")
+    moved = abs(off.values["g1"] - truth["g1"])
+    assert moved > 1e-4 * truth["g1"]  # a large swing's damping moves with the pivot's height
+    assert boot.geometry["g1"] == pytest.approx(moved, rel=0.3)

@@ -104,13 +104,15 @@ class Bootstrap:
     held_out: float | None = None  # the held-out prediction's miss over the residuals there (_held_out)
     bend: dict[str, float] = field(default_factory=dict)  # the constants' RMS change under BEND-sized bends
     scaling: dict[str, float] = field(default_factory=dict)  # d constant / d log(the path's scale)
+    geometry: dict[str, float] = field(default_factory=dict)  # the constants' std from the measurement's geometry (moves)
 
     def to_dict(self) -> dict:
         return {"method": "moving-block bootstrap of the one trajectory's residuals", "block": self.block,
                 "iterations": self.iterations, "kept": self.kept, "t_quantile": self.quantile,
                 "wall_s": self.wall_s, "trajectory": dict(self.values), "std": dict(self.std),
                 "dlog_dt": dict(self.timing), "misfit": self.misfit, "residual_rms": list(self.residual_rms),
-                "held_out": self.held_out, "bend": dict(self.bend), "dlog_scale": dict(self.scaling)}
+                "held_out": self.held_out, "bend": dict(self.bend), "dlog_scale": dict(self.scaling),
+                "geometry": dict(self.geometry)}
 
 
 def correlation(residuals: np.ndarray) -> float:
@@ -122,11 +124,17 @@ def correlation(residuals: np.ndarray) -> float:
 
 
 def block_length(residuals: np.ndarray) -> int:
-    """BLOCK_TIMES the integrated autocorrelation time of the residuals (the larger of the sum
+    """BLOCK_TIMES the integrated autocorrelation time of the residuals (correlation_time), at
+    least 1 and at most a quarter of the frames: a block must hold what hangs together, and
+    there must be blocks to draw."""
+    n = len(residuals)
+    return int(min(max(1, math.ceil(BLOCK_TIMES * correlation_time(residuals))), max(1, n // 4)))
+
+
+def correlation_time(residuals: np.ndarray) -> float:
+    """The integrated autocorrelation time of residuals (T, k) in samples: the larger of the sum
     of their autocorrelation over its initial positive run, Geyer's cut, and an AR(1)'s
-    (1 + rho) / (1 - rho) from the lag-one correlation; the largest over the states), at least 1
-    and at most a quarter of the frames: a block must hold what hangs together, and there must
-    be blocks to draw."""
+    (1 + rho) / (1 - rho) from the lag-one correlation; the largest over the states."""
     r = np.asarray(residuals, dtype=float).reshape(len(residuals), -1)
     n = len(r)
     rho = correlation(r)
@@ -143,7 +151,7 @@ def block_length(residuals: np.ndarray) -> int:
                 break
             s += 2 * acf[k]
         tau = max(tau, s)
-    return int(min(max(1, math.ceil(BLOCK_TIMES * tau)), max(1, n // 4)))
+    return tau
 
 
 def block_bias(rho: float, block: int) -> float:
@@ -313,11 +321,13 @@ class _Batch:
 def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping[str, float], *,
               iterations: int = ITERATIONS, seed: int = 0, integrator: str = "rk4", substeps: int = 1,
               refit_iterations: int = REFIT_ITERATIONS, level: float = LEVEL,
-              learned: bool = False) -> Bootstrap | None:
+              learned: bool = False, moves: list[np.ndarray] | None = None) -> Bootstrap | None:
     """The moving-block bootstrap of the path x (T, k) about one trajectory of the equation
     fitted from `values` (see the module docstring). learned: x is a learned latent, whose
-    bends are measured too (bends). None where the path cannot be fitted as one trajectory or
-    too few refits succeed."""
+    bends are measured too (bends). moves: changes of the path (T, k), each one standard deviation
+    of the measurement's geometry along an independent direction (an angle's pivot: angle.pivot_moves);
+    the refits of the path so changed give each constant's share (geometry). None where the path
+    cannot be fitted as one trajectory or too few refits succeed."""
     began = time.perf_counter()
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     if not np.all(np.isfinite(x)):
@@ -343,6 +353,7 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
         scaled = batch.chord(centre, fitted[None] * (1 + SCALE_STEP), refit_iterations)
         held_out = _held_out(system, params, x, dt, centre, integrator, substeps)
         bend = bends(batch, centre, fitted, refit_iterations) if learned else {}
+        moved = batch.chord(centre, fitted[None] + np.stack(moves), refit_iterations) if moves else None
     except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError, FitodeError):
         return None  # (FitodeError: a refit ran a constant off to no number, on a path of noise)
     names, m = batch.names, batch.m
@@ -353,13 +364,15 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
     timing = {n: float((centre[0, i] - stretched[0, i]) / math.log1p(TIME_STEP)) for i, n in enumerate(names)}
     scaling = {n: float((scaled[0, i] - centre[0, i]) / math.log1p(SCALE_STEP)) for i, n in enumerate(names)
                if math.isfinite(scaled[0, i])}
+    geometry = ({n: float(np.sqrt(np.sum((moved[:, i] - centre[0, i]) ** 2))) for i, n in enumerate(names)
+                 if np.all(np.isfinite(moved[:, i]))} if moved is not None else {})
     return Bootstrap(values={n: float(centre[0, i]) for i, n in enumerate(names)},
                      std={n: float(s) for n, s in zip(names, spread)}, timing=timing, block=block,
                      iterations=iterations, kept=len(draws), quantile=t_quantile(level, len(draws) - 1),
                      wall_s=time.perf_counter() - began,
                      misfit=float(np.sqrt(np.mean((resid * batch.weight) ** 2))),
                      residual_rms=[float(v) for v in np.sqrt(np.mean(resid ** 2, axis=0))],
-                     held_out=held_out, bend=bend, scaling=scaling)
+                     held_out=held_out, bend=bend, scaling=scaling, geometry=geometry)
 
 
 def bends(batch: _Batch, centre: np.ndarray, fitted: np.ndarray, iterations: int) -> dict[str, float]:
@@ -418,6 +431,7 @@ def combine(value: float, boot: Bootstrap | None, name: str, *, rate_std: float 
     shares = {"residuals": boot.std[name] * scale * boot.quantile / z,  # as a normal std with the t's width
               "timing": timing if math.isfinite(timing) else 0.0,
               "scale": measure if math.isfinite(measure) else 0.0,
+              "geometry": boot.geometry.get(name, 0.0) * scale,
               "calibration": abs(value) * relative,
               "restarts": RESTART_WIDEN * restarts,
               "encoder": math.hypot(boot.bend.get(name, 0.0) * scale, ENCODER_FLOOR * abs(value)) if encoder else 0.0}
@@ -439,14 +453,19 @@ def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
     best = next((r for r in result.runs if r.index == result.best), None)
     if best is None or not best.final or result.meta.get("interrupted"):
         return {}, None
+    from .observe.angle import pivot_moves
+
     x = _path(result, best)
     settings = result.settings
     learned = not result.meta.get("measured")
-    boot = bootstrap(system, params, x, result.dt, best.final, seed=seed, learned=learned,
+    frames = (result.meta.get("trajectory") or {}).get("frames") if isinstance(result.meta.get("trajectory"), Mapping) else None
+    moves = pivot_moves(x, result.meta.get("measurement"), tuple(frames)) if frames and x.shape[1] == 1 else []
+    boot = bootstrap(system, params, x, result.dt, best.final, seed=seed, learned=learned, moves=moves,
                      integrator=str(settings.get("integrator", "rk4")), substeps=int(settings.get("substeps", 1)))
     out: dict[str, Interval] = {}
     own = set(result.meta.get("own_units", ()))
-    scale_std = float((result.meta.get("measurement") or {}).get("scale_error") or 0.0)
+    # an angle's pivot moved by its uncertainty carries its scale too: the scale share is for what has no moves
+    scale_std = 0.0 if moves else float((result.meta.get("measurement") or {}).get("scale_error") or 0.0)
     scale_std = scale_std if math.isfinite(scale_std) else 0.0
     for name, est in result.parameters.items():
         if boot is None or name not in boot.values:

@@ -36,6 +36,9 @@ class Circle:
     radius_error: float = np.inf  # the radius's relative standard error (radius_error())
 
     points: int = 0  # how many points it was fitted to
+    # the centre's covariance (var x, cov xy, var y), widened as the radius's error is: the angles are
+    # read about the centre alone, so this is what the measurement's geometry leaves uncertain
+    centre_cov: tuple[float, float, float] | None = None
 
     @property
     def bend(self) -> float:
@@ -90,8 +93,8 @@ def fit_circle(xy: np.ndarray) -> Circle | None:
     lo, hi = np.percentile(angles, [1, 99])  # a stray frame does not widen the span
     span = float(hi - lo)
     sagitta = radius * (1 - np.cos(min(span, 2 * np.pi) / 2)) if span < np.pi else radius
-    error = radius_error(xy, centre, radius, scale, jac)
-    return Circle((float(centre[0]), float(centre[1])), radius, scale, float(sagitta), span, error, len(xy))
+    error, cov = radius_error(xy, centre, radius, scale, jac)
+    return Circle((float(centre[0]), float(centre[1])), radius, scale, float(sagitta), span, error, len(xy), cov)
 
 
 def _geometric(xy: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray | None] | None:
@@ -122,39 +125,43 @@ def _geometric(xy: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray | N
     return params[:2] + mean, abs(float(params[2])), scale, jac
 
 
-def radius_error(xy: np.ndarray, centre: np.ndarray, radius: float, scale: float, jac: np.ndarray | None) -> float:
+def radius_error(xy: np.ndarray, centre: np.ndarray, radius: float, scale: float,
+                 jac: np.ndarray | None) -> tuple[float, tuple[float, float, float] | None]:
     """The radius's relative standard error, the larger of two readings of how the misses hang
-    together (inf where neither can be made):
+    together (inf where neither can be made), and the centre's covariance widened by the same
+    factor over least squares' (None where there is no Jacobian):
     - along the arc: least squares' error (the Jacobian's, times the scatter) widened by the
-      misses' correlation time along the arc, (1 + r) / (1 - r) for the lag-one correlation r of
-      the distances sorted by angle: a slanted swing or a bob whose look turns with the angle
+      misses' correlation time along the arc (interval.correlation_time of the distances sorted
+      by angle): a slanted swing or a bob whose look turns with the angle
       misses the circle alike at neighbouring places, however far apart in time;
     - in time: a delete-a-block jackknife over JACKKNIFE_BLOCKS stretches of the path: a miss that
       drifts in time (a bob that twists, a pivot that sways) while the swing decays and covers
       less of the arc bends the arc it is read on.
     A fixed count of CORRELATED points per independent miss made the real apple's radius 9.2%
     uncertain, where its jackknife says 2.1% and its misses along the arc 3.2%."""
-    from fitode.train.interval import correlation
+    from fitode.train.interval import correlation_time
 
-    error = np.inf
+    error, cov = np.inf, None
     if jac is not None:
         try:
             d = np.hypot(xy[:, 0] - centre[0], xy[:, 1] - centre[1]) - radius
             order = np.argsort(np.arctan2(xy[:, 1] - centre[1], xy[:, 0] - centre[0]))
-            r = correlation(d[order][:, None])
-            error = float(np.sqrt(np.linalg.inv(jac.T @ jac)[2, 2] * (1 + r) / (1 - r)) * scale / max(radius, 1e-12))
+            cov = np.linalg.inv(jac.T @ jac) * scale ** 2 * correlation_time(d[order])
+            error = float(np.sqrt(cov[2, 2])) / max(radius, 1e-12)
         except np.linalg.LinAlgError:
-            pass
+            cov = None
     n, g = len(xy), JACKKNIFE_BLOCKS
-    if n < JACKKNIFE_MIN * g:
-        return error
-    edges = np.linspace(0, n, g + 1).astype(int)
-    left = [_geometric(np.delete(xy, np.s_[edges[k]:edges[k + 1]], axis=0)) for k in range(g)]
-    if any(f is None for f in left):
-        return error
-    radii = np.array([f[1] for f in left])
-    jack = float(np.sqrt((g - 1) / g * np.sum((radii - radii.mean()) ** 2))) / max(radius, 1e-12)
-    return max(error, jack) if np.isfinite(error) else jack
+    left = []
+    if n >= JACKKNIFE_MIN * g:
+        edges = np.linspace(0, n, g + 1).astype(int)
+        left = [_geometric(np.delete(xy, np.s_[edges[k]:edges[k + 1]], axis=0)) for k in range(g)]
+    if left and all(f is not None for f in left):
+        radii = np.array([f[1] for f in left])
+        jack = float(np.sqrt((g - 1) / g * np.sum((radii - radii.mean()) ** 2))) / max(radius, 1e-12)
+        if cov is not None and jack > error:
+            cov = cov * (jack / error) ** 2
+        error = max(error, jack) if np.isfinite(error) else jack
+    return error, None if cov is None else (float(cov[0, 0]), float(cov[0, 1]), float(cov[1, 1]))
 
 
 def _robust_std(r: np.ndarray) -> float:
