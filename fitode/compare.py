@@ -215,7 +215,7 @@ def _held_out(c: CandidateFit, x: np.ndarray, blocks: int):
     try:
         held = held_out(system, plan.params, x, plan.dt, traj["values"], fitted_gauge=traj.get("gauge"),
                         gauge=gauges, blocks=blocks, integrator=plan.config.integrator,
-                        substeps=plan.config.substeps)
+                        substeps=int(c.result.settings.get("substeps", plan.config.substeps)))  # the steps the fit settled on
     except ValueError as exc:  # too few frames for the blocks
         raise FitodeError(f"cannot cross-validate: {exc}") from None
     if not math.isfinite(held.error):
