@@ -18,10 +18,13 @@ The estimate is a set of constants for which one trajectory of the equation foll
   and a relative uncertainty of the frame rate (rate_std: the container's nominal rate, or 0 for
   a rate the user gave) adds its share.
 - the calibration points (fitode.calibrate: value +- std), added by the caller as a relative share.
-- the measurement's own scale. An angle about a fitted pivot is read with the pivot's
-  uncertainty: the circle's radius, and so every angle, is uncertain by a relative standard error
-  (meta["measurement"]["scale_error"]); the refit of the path scaled by SCALE_STEP gives each
-  constant's sensitivity (a large swing's L moves with the amplitude, a small one's not at all).
+- the measurement's geometry. An angle is read about a fitted pivot, uncertain by its covariance
+  (meta["measurement"]["pivot_cov"]): the path read again about the pivot moved by one standard
+  deviation along each of its axes (observe.angle.pivot_moves) and refitted gives each constant's
+  share (geometry; a large swing's L moves with the amplitude, its damping with the bend a pivot
+  off along the hanging direction gives large angles). Where a measurement gives only a relative
+  scale error (meta["measurement"]["scale_error"]), the refit of the path scaled by SCALE_STEP gives
+  each constant's sensitivity to it instead.
 - the restarts of a free latent: the spread of the kept restarts, widened by RESTART_WIDEN (few
   restarts say little of their own spread), the gap between the reported value and the one
   trajectory's (the training's windows see less than the whole clip), and what the latent's
