@@ -168,10 +168,13 @@ def follow(found: dict[int, list[tuple[float, float, float, float]]], length: in
 
     A frame's strongest change is not always the object: something crossing the view (a person,
     a ball carried past) can outweigh it for a while. The path is the one through the frames'
-    candidates that jumps least and is strongest (a Viterbi pass): a step costs by how much its
-    length exceeds the object's own motion from frame to frame (in units of that motion), squared,
-    so that a fast swing costs nothing; a candidate costs RANK for each place it stands below the
-    frame's strongest. A jump to something else and back costs far more than
+    candidates that changes its step least and is strongest (a Viterbi pass over pairs of
+    candidates): a change of step (an acceleration) costs by how much it exceeds the object's own
+    motion from frame to frame (in units of that motion), squared, up to JUMP (the object is lost
+    and found again elsewhere), so that a fast swing or a fall costs nothing; a candidate costs
+    RANK for each place it stands below the frame's strongest, and earns up to MOVE where it
+    moves (it lies far from every candidate of the frame before: a ghost, a wall's flicker or a
+    hand that has let go stays put). A jump to something else and back costs far more than
     following a weaker object for a while. Each further object is the same pass over the
     candidates the earlier paths left."""
     frames = sorted(t for t in found if found[t])
@@ -184,60 +187,120 @@ def follow(found: dict[int, list[tuple[float, float, float, float]]], length: in
     # clip (a local one would be a crossing thing's while it outweighs the object), and never
     # under a quarter of its size
     base = max(2.0 * float(np.median(steps)) if len(steps) else 1.0, 0.25 * size, 1.0)
-    local = np.full(len(frames), base)
     paths: list[dict[int, int]] = []
     taken: dict[int, set[int]] = {t: set() for t in frames}
     for _ in range(objects):
-        path = _viterbi(found, frames, taken, local)
+        path = _extended(found, frames, taken, base, _viterbi(found, frames, taken, base))
         paths.append(path)
         for t, j in path.items():
             taken[t].add(j)
     return paths
 
 
-def _viterbi(found, frames, taken, local) -> dict[int, int]:
-    cost_prev: np.ndarray | None = None
-    back: list[np.ndarray] = []
-    options: list[list[int]] = []
-    prev_xy, last_t = None, 0
-    for i, t in enumerate(frames):
+def _moving(found, t: int, xy: np.ndarray, base: float) -> np.ndarray:
+    """(n,) how far each of frame t's candidates xy lies from every candidate of frame t - 1, in
+    units of MOVE_SPAN object steps (at most 1; 0 where frame t - 1 has none)."""
+    before = found.get(t - 1)
+    if not before:
+        return np.zeros(len(xy))
+    near = np.linalg.norm(xy[:, None, :] - np.array([c[:2] for c in before])[None], axis=2).min(axis=1)
+    return np.minimum(near / (MOVE_SPAN * base), 1.0)
+
+
+def _extended(found, frames, taken, base: float, path: dict[int, int]) -> dict[int, int]:
+    """The path with its main piece (the one that travels farthest between two jumps: a ball
+    that falls, not the floor or the hand the path took before and after) kept and continued
+    both ways through the candidates that move on from it most smoothly, whatever their rank:
+    before a ball falls it is in the hand that lets it go, not a stronger change elsewhere."""
+    ts = sorted(path)
+    xy = np.array([found[t][path[t]][:2] for t in ts])
+    if len(ts) < 3:
+        return path
+    step = np.diff(xy, axis=0) / np.diff(ts)[:, None]
+    jumps, before = [], np.zeros(2)
+    for i, v in enumerate(step):  # as the pass judged them: after a jump, against standing still
+        lost = _excess(float(np.linalg.norm(v - before)), base) >= JUMP
+        if lost:
+            jumps.append(i + 1)  # the first frame after the jump
+        before = np.zeros(2) if lost else v
+    if not len(jumps):
+        return path
+    pieces = np.split(np.arange(len(ts)), jumps)
+    main = max(pieces, key=lambda k: float(np.linalg.norm(np.ptp(xy[k], axis=0))))
+    inside = {ts[k] for k in main}
+    fixed = {t: (set(range(len(found[t]))) - {path[t]}) if t in inside else taken[t] for t in frames}
+    return _viterbi(found, frames, fixed, base, rank=0.0, move=0.0)
+
+
+def _viterbi(found, frames, taken, base: float, rank: float = None, move: float = None,
+             jump: float = None) -> dict[int, int]:
+    """The path through the candidates not yet taken: each state is a pair (the candidate before,
+    this frame's), so that a step is compared with the one before it (rank, move, jump: the
+    costs of follow, RANK, MOVE and JUMP unless given)."""
+    rank = RANK if rank is None else rank
+    move = MOVE if move is None else move
+    jump = JUMP if jump is None else jump
+    kept, options, xys, unary = [], [], [], []
+    for t in frames:
         opts = [j for j in range(len(found[t])) if j not in taken[t]]
-        options.append(opts)
         if not opts:
-            back.append(np.zeros(0, int))
             continue
+        xy = np.array([found[t][j][:2] for j in opts])
         # the candidates' masses come from thresholds of their own (each the strongest of what the
         # earlier ones left), so only their order compares: each place down it costs RANK
-        unary = RANK * np.array(opts, dtype=np.float64)
-        xy = np.array([found[t][j][:2] for j in opts])
-        if cost_prev is None:
-            cost, arg = unary, np.zeros(len(opts), int)
-        else:
-            gap = t - last_t
-            scale = local[i] * gap
-            # a step within the object's own motion is free (a swing is fast at the bottom, still
-            # at its turns); beyond it, the excess costs, squared
-            reach = np.sqrt(((xy[:, None, :] - prev_xy[None, :, :]) ** 2).sum(axis=2)) / scale
-            total = cost_prev[None, :] + np.maximum(reach - 1.0, 0.0) ** 2
-            arg = np.argmin(total, axis=1)
-            cost = unary + total[np.arange(len(opts)), arg]
-        back.append(arg)
-        cost_prev, prev_xy, last_t = cost, xy, t
-    if cost_prev is None:
+        kept.append(t)
+        options.append(opts)
+        xys.append(xy)
+        unary.append(rank * np.array(opts, dtype=np.float64) - move * _moving(found, t, xy, base))
+    if not kept:
         return {}
-    path: dict[int, int] = {}
-    k = int(np.argmin(cost_prev))
-    for i in range(len(frames) - 1, -1, -1):
-        if not options[i]:
-            continue
-        path[frames[i]] = options[i][k]
-        k = int(back[i][k])
-    return path
+    if len(kept) == 1:
+        return {kept[0]: options[0][int(np.argmin(unary[0]))]}
+    # a state is (the candidate before, this frame's, whether the step between them was a jump):
+    # the step after a jump (the object taken up elsewhere) is compared with standing still, so
+    # that a jump costs once; the first step is compared with standing still too
+    velocity = (xys[1][None, :, :] - xys[0][:, None, :]) / (kept[1] - kept[0])  # (before, now, 2)
+    excess = _excess(np.linalg.norm(velocity, axis=2), base)
+    first = unary[0][:, None] + np.minimum(excess, jump) + unary[1][None, :]
+    cost = np.stack([np.where(excess >= jump, np.inf, first), np.where(excess >= jump, first, np.inf)], axis=-1)
+    back: list[np.ndarray] = []
+    for k in range(2, len(kept)):
+        step = (xys[k][None, :, :] - xys[k - 1][:, None, :]) / (kept[k] - kept[k - 1])  # (now, next, 2)
+        kept_on = np.linalg.norm(step[None, :, :, :] - velocity[:, :, None, :], axis=3)  # (before, now, next)
+        taken_up = np.broadcast_to(np.linalg.norm(step, axis=2)[None], kept_on.shape)
+        excess = _excess(np.stack([kept_on, taken_up], axis=-1), base)  # (before, now, next, jumped before)
+        total = cost[:, :, None, :] + np.minimum(excess, jump)
+        n_before, n_now, n_next = kept_on.shape
+        cost = np.empty((n_now, n_next, 2))
+        arg = np.empty((n_now, n_next, 2), dtype=int)
+        for lost in (0, 1):
+            ways = np.where((excess >= jump) == bool(lost), total, np.inf).transpose(1, 2, 0, 3).reshape(n_now, n_next, -1)
+            arg[..., lost] = np.argmin(ways, axis=2)
+            cost[..., lost] = np.min(ways, axis=2)
+        cost += unary[k][None, :, None]
+        back.append(arg)
+        velocity = step
+    now, nxt, lost = np.unravel_index(int(np.argmin(cost)), cost.shape)
+    chosen = [0] * len(kept)
+    chosen[-2], chosen[-1] = int(now), int(nxt)
+    for k in range(len(kept) - 1, 1, -1):
+        before, lost = divmod(int(back[k - 2][chosen[k - 1], chosen[k], lost]), 2)
+        chosen[k - 2] = before
+    return {t: options[k][chosen[k]] for k, t in enumerate(kept)}
+
+
+def _excess(change: np.ndarray, base: float) -> np.ndarray:
+    """What a change of step costs before JUMP caps it: nothing within the object's own motion
+    (base), beyond it the excess squared."""
+    return np.maximum(change / base - 1.0, 0.0) ** 2
 
 
 CANDIDATES = 4  # the strongest changes each frame keeps for the path to choose from
 WEAKEST = 0.02   # a candidate's least mass, as a share of the frame's strongest
 RANK = 1.0       # what following the frame's k-th strongest candidate costs a frame, per place down
+JUMP = 40.0      # what losing the object and taking it up elsewhere costs: the rank of forty frames
+MOVE = 2.0       # what a frame's candidate that moves earns (see follow)
+MOVE_SPAN = 4.0  # ... in full where it lies this many object steps from the frame before's candidates
 
 
 def _candidates(frame: np.ndarray, background: np.ndarray, noise: float) -> list[tuple[float, float, float, float]]:

@@ -22,7 +22,7 @@ from .circle import Circle, fit_circle
 from .position import PositionObservation, axis_of
 from .subspace import SUBSPACE_JUMP
 from .track import Track
-from .tracking import ONE_WAY, centroids, line_of_motion, noise_level, one_way
+from .tracking import BACK, ONE_WAY, RUN, centroids, line_of_motion, noise_level, one_way, one_way_run
 
 STRONG = 0.25  # frames whose largest change is at least this share of the clip's largest
 LOOK_FRAMES = 256
@@ -100,6 +100,13 @@ def _resolved(spec, system, frames, light, encoder, source, track) -> Observatio
                         f"size, one way (rank correlation {seen.one_way:.2f} with time): a free encoder could bend "
                         "its path into one with other constants)")
         return model
+    if seen is not None and seen.moves and seen.runs_one_way and not seen.swings:
+        model = PositionObservation()
+        model.reason = (f"position (auto: the tracked object moves {seen.travel:.0f} pixels, {seen.travel / seen.size:.0f}x "
+                        f"its size, and one run of its path covers {seen.run[0]:.0%} of its travel one way, no run "
+                        f"the other way more than {seen.run[1]:.0%} (rank correlation {seen.one_way:.2f} with time over "
+                        "the whole clip): a free encoder could bend its path into one with other constants)")
+        return model
     if seen is not None and seen.swings and len(system.states) == 1:
         model = AngleObservation()
         c = seen.circle
@@ -140,6 +147,14 @@ class Look:
     one_way: float
     gap: float = 1.0  # the frames' first singular value over their second
     circle: Circle | None = None  # the circle the path bends about (None: a line, or too few points)
+    # the shares of the tracked path's travel its longest one-way run covers and its longest run the
+    # other way (tracking.one_way_run; (0, 0): no track)
+    run: tuple[float, float] = (0.0, 0.0)
+
+    @property
+    def runs_one_way(self) -> bool:
+        """One run of the tracked path covers most of its travel one way and it never comes far back."""
+        return self.run[0] >= RUN and self.run[1] <= BACK
 
     @property
     def moves(self) -> bool:
@@ -187,7 +202,7 @@ def look(frames: torch.Tensor, track: Track | None = None) -> Look:
         # a track that jumps to something else in some frames (a hand, the floor) looks back and
         # forth; the shrunk frames' centroids of the same clip may still see it run one way
         seen = Look(seen.travel, seen.size, max(seen.one_way, one_way(path[::step])), gap,
-                    fit_circle(track.filled()))
+                    fit_circle(track.filled()), one_way_run(path.numpy()))
     elif seen.moves:
         seen.circle = fit_circle(xy.double().cpu().numpy())
     return seen

@@ -14,6 +14,11 @@ import numpy as np
 import torch
 
 ONE_WAY = 0.9  # |rank correlation| with time from which a path counts as running one way
+# a path that is not one way as a whole (a hand that holds a ball, a bounce, a track that takes up
+# something else before and after) still runs one way where one run of it covers RUN of its travel
+# and no run the other way covers more than BACK of it (the real drop's bounce: 0.18)
+RUN = 0.8
+BACK = 1 / 3
 CORE = 0.7
 MEND_SPAN = 21  # frames around each frame whose running median a one-way path is checked against
 MEND_SIGMAS = 6.0
@@ -86,8 +91,8 @@ def _edge_run(frames: Sequence[int], end: int, way: int) -> int:
 
 
 def mend_one_way(path: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Tensor, int]:
-    """A path that runs one way (rank correlation with time at least ONE_WAY over the first n_fit
-    frames) with the frames that leave it read from their neighbours, and how many those are.
+    """A path that runs one way (runs_one_way over the first n_fit frames) with the frames that
+    leave it read from their neighbours, and how many those are.
 
     A one-way path is its own running median (the median of a monotone run is its middle), so
     a frame far from the running median of the MEND_SPAN frames around it is not the object:
@@ -100,7 +105,7 @@ def mend_one_way(path: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Te
     n_fit = n if n_fit is None else int(n_fit)
     if n_fit < 8:
         return path, 0
-    if one_way(path[:n_fit]) < ONE_WAY:
+    if not runs_one_way(path[:n_fit]):
         return path, 0
     x = path.double().cpu().numpy()
     half = max(2, min(MEND_SPAN // 2, n // 4))
@@ -124,7 +129,7 @@ def mend(path: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Tensor, in
     are: against the running median where it runs one way (mend_one_way), else against a local
     parabola (mend_strays: an oscillation)."""
     n_fit = path.shape[0] if n_fit is None else int(n_fit)
-    if n_fit >= 8 and one_way(path[:n_fit]) >= ONE_WAY:
+    if n_fit >= 8 and runs_one_way(path[:n_fit]):
         return mend_one_way(path, n_fit)
     mended, count = mend_strays(path.double().cpu().numpy(), n_fit)
     return torch.as_tensor(mended, dtype=path.dtype, device=path.device), count
@@ -136,6 +141,23 @@ def one_way(path: torch.Tensor) -> float:
     ranks = torch.argsort(torch.argsort(path)).double()
     t = torch.arange(len(ranks), dtype=torch.float64, device=ranks.device)
     return abs(float(torch.corrcoef(torch.stack([ranks, t]))[0, 1]))
+
+
+def runs_one_way(path: torch.Tensor) -> bool:
+    """A path (T,) runs one way: its rank correlation with time is at least ONE_WAY, or one run of
+    it covers RUN of its travel and no run the other way more than BACK (one_way_run)."""
+    if one_way(path) >= ONE_WAY:
+        return True
+    first, other = one_way_run(path.double().cpu().numpy())
+    return first >= RUN and other <= BACK
+
+
+def one_way_run(path: np.ndarray) -> tuple[float, float]:
+    """The shares of a path's (T,) travel its longest one-way run covers and its longest run the
+    other way does (fitode.train.stretch.one_way_runs)."""
+    from ..stretch import one_way_runs
+    first, other = sorted((share for _, _, share in one_way_runs(path).values()), reverse=True)
+    return first, other
 
 
 def line_of_motion(xy: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Tensor, torch.Tensor]:
