@@ -15,7 +15,10 @@ hold together (a block at rest obeys x'' = a with a = 0). The stretch is found, 
    stays within TOL of it is taken whole (and grown into the rests);
 4. otherwise grown from the seeds: each is grown at both ends (into the rests too: a motion starts from rest), a step at a time
    (halved on a miss), for as long as one trajectory still fits with a misfit within TOL of the noise on the new frames and on the whole;
-   the longest stretch wins.
+   one more seed sits in the middle of the run's longest one-way run (a fall between a hand and
+   the floor) and grows to a misfit of MAIN_SLACK of the travel (a camera's perspective bends a
+   long fall by more than its noise); the stretch that travels farthest wins (a rest is one
+   trajectory too, and may last longer than the motion).
 
 Why it ends is said in words: the clip ends, the thing stops (a rest follows), or the path leaves
 the trajectory (by how many times the noise).
@@ -133,7 +136,7 @@ def find_stretch(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray 
         if whole is not None and whole <= BREAK * level:
             best = _grow(fit, a, b, 0, T, level, whole) or (a, b)
             continue
-        grown_from = [(int(s), level, seeds[int(s)], TOL) for s in starts]
+        grown_from = [(int(s), level, seeds[int(s)]) for s in starts]
         main = _main_seed(x[a:b], seed)
         if main is not None:
             # the middle of the motion the run is about (a fall between the hand and the floor,
@@ -146,11 +149,11 @@ def find_stretch(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray 
             own = _rms(fit(s, s + seed))
             if own is not None:
                 limit = max(BREAK * max(level, own), MAIN_SLACK * reach((a, b)))
-                grown_from.append((s, limit / TOL, own, TOL))
-        for s, at, first, tol in grown_from:
+                grown_from.append((s, limit / TOL, own))
+        for s, at, first in grown_from:
             if best is not None and best[0] <= s and s + seed <= best[1]:
                 continue
-            grown = _grow(fit, s, s + seed, 0, T, at, first, tol)
+            grown = _grow(fit, s, s + seed, 0, T, at, first)
             if grown is not None and reach(grown) > reach(best):
                 best = grown
     if best is None:
@@ -201,12 +204,11 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
 
 
-def _grow(fit, a: int, b: int, lo: int, hi: int, noise: float, first: float | None,
-          tol: float = TOL) -> tuple[int, int] | None:
-    """[a, b) (its fit's RMS `first`) grown within [lo, hi) while one trajectory still fits it
-    within tol noise spreads on the added frames (tol / 2 on the whole): at each end, a bisection
-    for the longest extension whose added frames still fit (a dozen fits, not one per frame)."""
-    if first is None or first > tol / 2 * noise:
+def _grow(fit, a: int, b: int, lo: int, hi: int, noise: float, first: float | None) -> tuple[int, int] | None:
+    """[a, b) (its fit's RMS `first`) grown within [lo, hi) while one trajectory still fits it: at
+    each end, a bisection for the longest extension whose added frames still fit (a dozen fits,
+    not one per frame)."""
+    if first is None or first > TOL / 2 * noise:
         return None
     level = max(first, noise)
     for side in ("end", "start"):
@@ -216,7 +218,7 @@ def _grow(fit, a: int, b: int, lo: int, hi: int, noise: float, first: float | No
             na, nb = (a, b + ext) if side == "end" else (a - ext, b)
             r = fit(na, nb)
             new = None if r is None else r[:ext] if side == "start" else r[r.shape[0] - ext:]
-            if r is not None and _rms(r) <= tol / 2 * level and _rms(new) <= tol * level:
+            if r is not None and _rms(r) <= TOL / 2 * level and _rms(new) <= TOL * level:
                 good = ext
             else:
                 bad = ext

@@ -232,8 +232,8 @@ def _extended(found, frames, taken, base: float, path: dict[int, int]) -> dict[i
     return _viterbi(found, frames, fixed, base, rank=0.0, move=0.0)
 
 
-def _viterbi(found, frames, taken, base: float, rank: float = None, move: float = None,
-             jump: float = None) -> dict[int, int]:
+def _viterbi(found, frames, taken, base: float, rank: float | None = None, move: float | None = None,
+             jump: float | None = None) -> dict[int, int]:
     """The path through the candidates not yet taken: each state is a pair (the candidate before,
     this frame's), so that a step is compared with the one before it (rank, move, jump: the
     costs of follow, RANK, MOVE and JUMP unless given)."""
@@ -270,7 +270,7 @@ def _viterbi(found, frames, taken, base: float, rank: float = None, move: float 
         taken_up = np.broadcast_to(np.linalg.norm(step, axis=2)[None], kept_on.shape)
         excess = _excess(np.stack([kept_on, taken_up], axis=-1), base)  # (before, now, next, jumped before)
         total = cost[:, :, None, :] + np.minimum(excess, jump)
-        n_before, n_now, n_next = kept_on.shape
+        _, n_now, n_next = kept_on.shape
         cost = np.empty((n_now, n_next, 2))
         arg = np.empty((n_now, n_next, 2), dtype=int)
         for lost in (0, 1):

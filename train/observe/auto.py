@@ -22,7 +22,7 @@ from .circle import Circle, fit_circle
 from .position import PositionObservation, axis_of
 from .subspace import SUBSPACE_JUMP
 from .track import Track
-from .tracking import BACK, ONE_WAY, RUN, centroids, line_of_motion, noise_level, one_way, one_way_run
+from .tracking import ONE_WAY, centroids, covers_one_way, line_of_motion, noise_level, one_way, one_way_run
 
 STRONG = 0.25  # frames whose largest change is at least this share of the clip's largest
 LOOK_FRAMES = 256
@@ -154,7 +154,7 @@ class Look:
     @property
     def runs_one_way(self) -> bool:
         """One run of the tracked path covers most of its travel one way and it never comes far back."""
-        return self.run[0] >= RUN and self.run[1] <= BACK
+        return covers_one_way(self.run)
 
     @property
     def moves(self) -> bool:

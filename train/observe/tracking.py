@@ -146,10 +146,13 @@ def one_way(path: torch.Tensor) -> float:
 def runs_one_way(path: torch.Tensor) -> bool:
     """A path (T,) runs one way: its rank correlation with time is at least ONE_WAY, or one run of
     it covers RUN of its travel and no run the other way more than BACK (one_way_run)."""
-    if one_way(path) >= ONE_WAY:
-        return True
-    first, other = one_way_run(path.double().cpu().numpy())
-    return first >= RUN and other <= BACK
+    return one_way(path) >= ONE_WAY or covers_one_way(one_way_run(path.double().cpu().numpy()))
+
+
+def covers_one_way(run: tuple[float, float]) -> bool:
+    """One run covers RUN of the travel one way and no run the other way more than BACK (the
+    shares one_way_run gives)."""
+    return run[0] >= RUN and run[1] <= BACK
 
 
 def one_way_run(path: np.ndarray) -> tuple[float, float]:
