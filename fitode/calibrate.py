@@ -356,6 +356,7 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     stretch = result.meta.get("stretch") or {}
     first, last = int(stretch.get("start_frame", 0)), int(stretch.get("end_frame", result.train_frames))
     fitted = _refit(system, params, x[first:last], result.dt, best, mapped_best, maps, options, seed)
+    measured = _scale_powers(system, params, x[first:last], result.dt, fitted, maps, options, powers)
     constants: dict[str, dict[str, Any]] = {}
     notes: list[str] = []
     if fitted is None:
@@ -381,7 +382,7 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
                            "best_run_before": ref, "converted": converted, "unfitted": unfitted,
                            "scale": scales[name],
                            "change": _rel(after, est.value),
-                           "relative_std": _relative_std(name, ratio if converted else 1.0, maps, rel_a, powers)}
+                           "relative_std": _relative_std(name, maps, rel_a, powers, measured)}
     best_after = {n: mapped_best.get(n, fitted.values[n] if fitted is not None else best[n]) for n in system.learnable}
     rollout = _rollout(system, params, x, result.dt, best_after, settings)
     loss = fitted.misfit ** 2 if fitted is not None else math.nan
@@ -445,20 +446,45 @@ def _refit(system, params, x: np.ndarray, dt: float, best: Mapping[str, float], 
     return min(fits, key=lambda f: f.misfit) if fits else None
 
 
-def _relative_std(name: str, ratio: float, maps: Mapping[str, AffineMap], rel_a: Mapping[str, float],
-                  powers: Mapping[str, Mapping[str, float] | None]) -> float:
+SCALE_STEP = 0.01  # the calibrated path scaled by this much to measure a constant's power of the scale
+
+
+def _scale_powers(system, params, x: np.ndarray, dt: float, fitted, maps: Mapping[str, AffineMap],
+                  options: Mapping[str, Any], powers: Mapping[str, Mapping[str, float] | None]) -> dict[str, float]:
+    """{name: d log(constant) / d log(scale)} for the constants with no pure power of the one
+    map's scale (a large swing's L moves with its amplitude), measured: the calibrated path x
+    scaled by SCALE_STEP about zero and fitted again from the fit's values. The power the
+    conversion itself showed, log|ratio| / log|a|, is no measure where the map hardly rescales
+    (an angle already read in radians: a = 0.99999, so the refit's own 0.05% difference from
+    the windows' value read as a power of 50, and L's interval as +-8%). {} where none is needed
+    or no fit could be made."""
+    from fitode.train.trajectory import fit_trajectory
+
+    names = [n for n in system.learnable if powers.get(n) is None]
+    if not names or len(maps) != 1 or fitted is None:
+        return {}
+    scaled = fit_trajectory(system, params, x * (1.0 + SCALE_STEP), dt, fitted.values, **options)
+    if scaled is None:
+        return {}
+    out = {}
+    for n in names:
+        a, b = fitted.values[n], scaled.values[n]
+        if a and b and a * b > 0:
+            out[n] = math.log(b / a) / math.log1p(SCALE_STEP)
+    return out
+
+
+def _relative_std(name: str, maps: Mapping[str, AffineMap], rel_a: Mapping[str, float],
+                  powers: Mapping[str, Mapping[str, float] | None], measured: Mapping[str, float]) -> float:
     """The relative standard deviation a calibrated constant takes from the points'
     uncertainties: the constant goes as prod a_s**p_s, so its relative std is the quadrature sum
-    of p_s times each scale's; where no pure power exists (a constant fitted after the map),
-    the power its conversion showed, log|ratio| / log|a|, over one map (0 where it cannot tell)."""
+    of p_s times each scale's; where no pure power exists (a constant fitted after the map), the
+    power measured on the calibrated path (_scale_powers), over one map (0 where it cannot tell)."""
     exps = powers.get(name)
     if exps is None:
-        if len(maps) != 1 or not math.isfinite(ratio) or ratio == 0:
+        if len(maps) != 1 or name not in measured:
             return 0.0
-        (state, m), = maps.items()
-        if abs(math.log(abs(m.a))) < 1e-6:
-            return 0.0
-        exps = {state: math.log(abs(ratio)) / math.log(abs(m.a))}
+        exps = {next(iter(maps)): measured[name]}
     return float(math.sqrt(sum((exps.get(s, 0.0) * rel_a.get(s, 0.0)) ** 2 for s in maps)))
 
 

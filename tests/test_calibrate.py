@@ -198,3 +198,30 @@ def test_a_latent_constant_the_calibrated_trajectory_does_not_bear_out_is_a_find
     found = cal.findings({})
     assert len(found) == 1 and found[0].level == "ambiguous" and found[0].names == ("a",)
     assert f"{c['mapped_best']:.6g}" in found[0].reason and f"{c['refit']:.6g}" in found[0].reason
+
+
+@pytest.mark.parametrize("swing", [0.1, 0.8])
+def test_an_angle_in_radians_takes_the_power_of_its_scale_that_its_fit_shows(swing):
+    """A large swing read as an angle in radians is calibrated by a map a = 1.00002 (the points'
+    readings a hair off): L's share of the points' uncertainty is its measured power of the scale
+    (about -swing**2/4: L moves with the amplitude) times the scale's relative std, not
+    log(ratio)/log(a), which read the refit's own 0.05% difference as a power of 50 (L +-8%)."""
+    from fitode.codegen.block import simulate
+    system = parse("theta'' = -g/L*sin(theta) - zeta*theta'")
+    truth = {"L": 0.9, "zeta": 0.08}
+    dt = 1 / 30
+    theta = simulate(system, truth, {"theta": [swing, 0.0]}, 150, dt, substeps=10).numpy()[:, 0]
+    t = np.arange(150) * dt
+    res = fake_result(system, t, theta / 1.00002, truth)
+    std = 0.002 * swing  # each point known to 0.2% of the swing
+    pts = parse_calibration(f"theta(0)={theta[0]}+-{std}; theta({t[-1]})={theta[-1]}+-{std}", ["theta"])
+    params = {"L": ParamSpec(init=1.0, min=0.0, unit="m"), "zeta": ParamSpec(init=0.1)}
+    cal = calibrate_result(res, system, params, pts, analysis(L="free-small-amplitude", zeta="free-small-amplitude"))
+    m = cal.maps["theta"]
+    rel_a = math.hypot(std / theta[0], std / theta[-1]) * abs(1 / (1 - theta[-1] / theta[0]))  # the order of it
+    power = swing ** 2 / 4 / (1 + swing ** 2 / 8)
+    c = cal.constants["L"]
+    assert c["after"] == pytest.approx(0.9, rel=2e-3)
+    assert abs(m.a - 1.00002) < 1e-4
+    assert c["relative_std"] < 0.01  # was 0.04 and more
+    assert c["relative_std"] == pytest.approx(power * rel_a, rel=0.6, abs=2e-6)
