@@ -138,3 +138,16 @@ def test_a_trusted_number_keeps_its_promise_of_five_percent_at_99():
     wide.parameters["k"].interval = [4.0 * 0.99, 4.0 * 1.04]  # the larger side decides
     v = _judged(wide).verdicts["k"]
     assert v.verdict == "ambiguous" and "pins it only to +-4%" in v.reason and "5%" in v.reason
+
+
+def test_a_calibrated_constants_rivals_are_judged_in_the_units_the_restarts_ran_in():
+    """A left-out restart at 4.1 beside a best restart at 4.0 agrees (2.5%), also where the
+    calibration put the estimate at 0.4 m: it was once compared with the calibrated 0.4 (a rival
+    of every calibrated estimate); one at 6.0 is a rival either way."""
+    from fitode.train.selection import rivals
+    for other, rival in ((4.1, False), (6.0, True)):
+        result = _result([_run(0, 4.0), _run(1, other, loss=0.03)], selected=[0])
+        result.parameters["k"] = Estimate(0.4, 0.0, 1, calibrated=True, latent_value=4.0)
+        assert bool(rivals(result, "k")) is rival
+        a = _judged(result, _analysis(scale="dependent"), calibrated=("k",))
+        assert (a.verdicts["k"].verdict == "ambiguous") is rival

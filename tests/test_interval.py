@@ -143,3 +143,22 @@ def test_a_measurement_scale_moves_only_what_depends_on_the_amplitude():
     wide = iv.combine(pb.values["L"], pb, "L", scale_std=0.01)
     assert wide.shares["scale"] == pytest.approx(abs(pb.scaling["L"]) * 0.01, rel=1e-6)
     assert wide.high - wide.low > plain.high - plain.low
+
+
+def test_the_interval_reaches_a_rival_restart_the_clip_cannot_rule_out():
+    """A left-out restart that tells the frames apart as well (selection.rivals) ended 50% away:
+    the interval reaches it, in the estimate's units (here a calibration's tenfold), and names the
+    share; a restart 2% away is no rival, and the same path gives a narrow interval."""
+    from fitode.train.result import Estimate
+    from tests.test_assess import _result, _run
+    system = parse("x'' = -k*x")
+    for far in (1.02, 1.5):
+        result = _result([_run(0, 1.0), _run(1, far, loss=0.03)], selected=[0])
+        result.latent = result.latent + 1e-3 * np.random.default_rng(3).normal(size=result.latent.shape)
+        result.parameters["k"] = Estimate(10.0, 0.0, 1, calibrated=True, latent_value=1.0)
+        out, _ = iv.result_intervals(result, system, {})
+        k = out["k"]
+        if far == 1.5:
+            assert k.low <= 5.0 and k.high >= 15.0 and k.shares["rivals"] == pytest.approx(5.0, rel=1e-6)
+        else:
+            assert k.shares["rivals"] == 0.0 and k.high - k.low < 1.0

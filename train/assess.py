@@ -8,7 +8,8 @@ judged with the whole run in view, each rule with one threshold:
   not trustworthy until calibrated, unless the observation measures the state in its own units;
 - agreement: the restarts an estimate comes from must agree within AGREE_TOL;
 - rivals: a restart left out that tells the frames apart as well (score within SCORE_MARGIN) and
-  fits its latent about as well (RIVAL_MISS) but ended elsewhere makes the estimate ambiguous;
+  fits its latent about as well (RIVAL_MISS) but ended elsewhere makes the estimate ambiguous
+  (selection.rivals; the interval reaches the farthest of them);
 - settling: an estimate whose restarts all stopped at the step limit is ambiguous, and says how
   far it still moved over its last MOTION_STEPS steps;
 - an interrupted run is ambiguous: its estimates come from unfinished training;
@@ -34,12 +35,8 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from .findings import LEVELS, Finding, Verdict
-from .selection import SCORE_MARGIN
+from .selection import AGREE_TOL, rivals
 
-AGREE_TOL = 0.05
-RIVAL_MISS = 10.0  # a restart that scores alike is a rival only if it fits the latent about as well
-# (its window error over the latent's variance within this factor: the loss would mix in the KL term,
-# which differs between right fits of a one-way motion)
 MOTION_STEPS = 200
 HELD_OUT_MAX = 3.0
 PROMISE = 0.05  # TRUSTED: within 5% of the truth at 99% (the coverage bench's false trust: > 5% off)
@@ -92,7 +89,7 @@ def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iter
         found = [f for f in measured if f.names is None or name in f.names]
         mine = _identifiability(name, analysis, calibrated, physical_units, result)
         mine += _agreement(name, value, sources)
-        mine += _rivals(name, value, result, best_score)
+        mine += _rivals(name, result)
         mine += _precision(name, result.parameters[name])
         if not interrupted:
             mine += _settling(name, sources, int(result.settings.get("max_steps", 0)))
@@ -167,24 +164,15 @@ def _agreement(name: str, value: float, sources) -> list[Finding]:
     return []
 
 
-def _rivals(name: str, value: float, result, best_score: float | None) -> list[Finding]:
+def _rivals(name: str, result) -> list[Finding]:
     """Restarts left out that tell the frames apart as well and fit their latent about as well
-    (only where restarts are scored: a measured latent is the same line for every restart, so
-    the loss compares them directly and the ones left out fit it worse)."""
-    if best_score is None:
-        return []
-    sel = [r for r in result.runs if r.index in result.selected]
-    misses = [r.miss for r in sel if r.miss is not None]
-    best_miss = min(misses) if misses else math.inf
-    rivals = [r for r in result.runs if r.index not in result.selected and r.status == "ok" and name in r.final
-              and r.score is not None and r.score >= best_score - SCORE_MARGIN
-              and (r.miss is None or r.miss <= RIVAL_MISS * best_miss)
-              and abs(r.value(name) - value) > AGREE_TOL * max(abs(value), 1e-12)]
-    if not rivals:
+    (selection.rivals); the interval spans them (fitode.train.interval)."""
+    found = rivals(result, name, AGREE_TOL)
+    if not found:
         return []
     return [Finding("ambiguous", "restarts that tell the frames apart as well ended elsewhere: "
                     + "; ".join(f"run {r.index + 1} at {_shown(r, name)} (score {r.score:.2f}, loss {r.loss:.3g})"
-                                for r in rivals), (name,))]
+                                for r in found), (name,))]
 
 
 def _shown(run, name: str) -> str:
