@@ -419,6 +419,9 @@ def map_factors(system, maps: Mapping[str, AffineMap], x: np.ndarray, states: Se
     return factors
 
 
+REFIT_STARTS = 6  # the most ranked starts the fit of the calibrated trajectory tries
+
+
 def _refit(system, params, x: np.ndarray, dt: float, best: Mapping[str, float], mapped: Mapping[str, float],
            maps: Mapping[str, AffineMap], options: Mapping[str, Any], seed: int):
     """The fit of the calibrated trajectory (fitode.train.trajectory, windows), from the mapped
@@ -441,8 +444,17 @@ def _refit(system, params, x: np.ndarray, dt: float, best: Mapping[str, float], 
         ranking = {"integrator": options["integrator"], "substeps": options["substeps"],
                    "windows": options.get("windows") or options.get("segments")}
         scored = sorted(((trajectory_misfit(system, params, x, dt, v, **ranking), i) for i, v in enumerate(starts)))
-        starts = [starts[i] for v, i in scored[:2] if math.isfinite(v)]
-    fits = [f for f in (fit_trajectory(system, params, x, dt, v, **options) for v in starts) if f is not None]
+        starts = [starts[i] for v, i in scored if math.isfinite(v)]
+    # the best two fits, going down the ranking past starts whose fit fails: a bounded constant
+    # started 2.6x below the truth (the drain's k from the windows' best start) can step out of the
+    # equation's domain where the next start converges, and then the constant stayed in latent units
+    fits = []
+    for v in starts[:REFIT_STARTS]:
+        f = fit_trajectory(system, params, x, dt, v, **options)
+        if f is not None:
+            fits.append(f)
+            if len(fits) == 2:
+                break
     return min(fits, key=lambda f: f.misfit) if fits else None
 
 

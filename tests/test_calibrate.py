@@ -225,3 +225,27 @@ def test_an_angle_in_radians_takes_the_power_of_its_scale_that_its_fit_shows(swi
     assert abs(m.a - 1.00002) < 1e-4
     assert c["relative_std"] < 0.01  # was 0.04 and more
     assert c["relative_std"] == pytest.approx(power * rel_a, rel=0.6, abs=2e-6)
+
+
+def test_the_refit_of_a_calibrated_trajectory_goes_past_a_start_whose_fit_fails(monkeypatch):
+    """h' = -k*sqrt(h) with an offset map (no pure power): the two best-ranked starts' fits fail (a
+    bounded k that steps out of the domain, as on a generated drain); the constant is still
+    converted, from the next start, instead of staying in latent units."""
+    import fitode.train.trajectory as tr
+    system = parse("h' = -k*sqrt(h)")
+    k, t = 0.05, np.arange(150) * 0.15
+    h = (1.0 - k * t / 2) ** 2
+    z = (h - 0.6) / 0.2  # an encoder's scale and an offset that matters
+    res = fake_result(system, t, z, {"k": 0.3})
+    pts = parse_calibration(f"h(0)={h[0]}; h({t[-1]})={h[-1]}", ["h"])
+    params = {"k": ParamSpec(init=1.0, min=0.0)}
+    real, calls = tr.fit_trajectory, []
+
+    def first_fails(*args, **kw):
+        calls.append(1)
+        return None if len(calls) <= 2 else real(*args, **kw)
+    monkeypatch.setattr(tr, "fit_trajectory", first_fails)
+    cal = calibrate_result(res, system, params, pts, analysis(k="dependent"))
+    c = cal.constants["k"]
+    assert len(calls) >= 3 and c["converted"] and not c["unfitted"]
+    assert c["after"] == pytest.approx(k, rel=0.02)
