@@ -162,3 +162,25 @@ def test_the_interval_reaches_a_rival_restart_the_clip_cannot_rule_out():
             assert k.low <= 5.0 and k.high >= 15.0 and k.shares["rivals"] == pytest.approx(5.0, rel=1e-6)
         else:
             assert k.shares["rivals"] == 0.0 and k.high - k.low < 1.0
+
+
+def test_a_one_way_latent_through_a_free_encoder_takes_the_wider_bend():
+    """A learned latent that runs one way (checks["one_way"], a drain through a free encoder) is
+    bent ONE_WAY_BEND of its spread, not BEND, in the encoder's share; a measured path takes none."""
+    from tests.test_assess import _result, _run
+    system = parse("x'' = -k*x")
+    shares = {}
+    for one_way in (False, True):
+        result = _result([_run(0, 1.0)], selected=[0])
+        result.latent = result.latent + 1e-3 * np.random.default_rng(3).normal(size=result.latent.shape)
+        result.checks = {"one_way": one_way}
+        out, boot = iv.result_intervals(result, system, {})
+        shares[one_way] = out["k"].shares["encoder"]
+    bend = boot.bend["k"] * 1.0 / boot.values["k"]
+    assert shares[False] == pytest.approx(math.hypot(bend, iv.ENCODER_FLOOR), rel=1e-6)
+    assert shares[True] == pytest.approx(math.hypot(bend * iv.ONE_WAY_BEND / iv.BEND, iv.ENCODER_FLOOR), rel=1e-6)
+    assert shares[True] > 2 * shares[False]
+    measured = _result([_run(0, 1.0)], selected=[0], measured=True)
+    measured.latent = measured.latent + 1e-3 * np.random.default_rng(3).normal(size=measured.latent.shape)
+    measured.checks = {"one_way": True}
+    assert iv.result_intervals(measured, system, {})[0]["k"].shares["encoder"] == 0.0

@@ -29,7 +29,8 @@ The estimate is a set of constants for which one trajectory of the equation foll
   restarts say little of their own spread), the gap between the reported value and the one
   trajectory's (the training's windows see less than the whole clip), and what the latent's
   freedom to bend adds: each constant's change when the fitted trajectory is bent by BEND of its
-  spread (bends), and a floor of ENCODER_FLOOR of its value.
+  spread (bends; ONE_WAY_BEND where the latent runs one way), and a floor of ENCODER_FLOOR of
+  its value.
 - the rivals: a restart left out that tells the frames apart as well and fits its latent about as
   well but ended elsewhere (selection.rivals, which makes the verdict ambiguous) is a solution the
   clip cannot rule out, so the interval reaches the farthest of them (a drain through a free
@@ -66,6 +67,11 @@ RESTART_WIDEN = 2.0
 # clips; the coverage bench checks them)
 BEND = 0.01
 ENCODER_FLOOR = 0.002
+# a one-way path (a drain, a decay) bent by a free encoder is bent farther, unseen: nothing in the
+# frames repeats to hold the readout straight, and the verdict calls it not trustworthy for that.
+# Its bends are taken ONE_WAY_BEND of its spread (set on the generated drains of `coverage.py
+# --cases drain`, k 1.5-6.4% high with the 1% bend's share at 0.4-0.7% of k)
+ONE_WAY_BEND = 0.05
 BLOCK_TIMES = 3  # blocks three autocorrelation times long: what is left is block_bias's
 MAX_RHO = 0.98
 DAMPINGS = (1e-9, 1e-5, 1e-2, 1.0)  # Levenberg-Marquardt dampings tried at once, relative to the diagonal
@@ -424,14 +430,15 @@ def _held_out(system, params: Mapping, x: np.ndarray, dt: float, centre: np.ndar
 
 def combine(value: float, boot: Bootstrap | None, name: str, *, rate_std: float = 0.0, relative: float = 0.0,
             restarts: float = 0.0, gap: float = 0.0, encoder: bool = False, scale_std: float = 0.0,
-            rival: float = 0.0, level: float = LEVEL) -> Interval | None:
+            rival: float = 0.0, one_way: bool = False, level: float = LEVEL) -> Interval | None:
     """One constant's interval about `value` from the bootstrap's shares and the caller's:
     rate_std (relative std of the frame rate), scale_std (relative std of the measurement's
     scale: an angle's pivot), relative (a relative std from elsewhere: the calibration), restarts (the kept restarts' std, widened here), encoder (add the bends'
     share: a learned latent), gap (a difference between two estimates of the same constant,
     added as a bias) and rival (the distance to the farthest restart left out that tells the
     frames apart as well, selection.rivals: the clip cannot choose between them, so the interval
-    reaches it). None without a bootstrap."""
+    reaches it); one_way: a learned latent that runs one way, whose bends are ONE_WAY_BEND. None
+    without a bootstrap."""
     from statistics import NormalDist
     if boot is None or not math.isfinite(boot.std.get(name, math.nan)):
         return None
@@ -445,7 +452,8 @@ def combine(value: float, boot: Bootstrap | None, name: str, *, rate_std: float 
               "geometry": boot.geometry.get(name, 0.0) * scale,
               "calibration": abs(value) * relative,
               "restarts": RESTART_WIDEN * restarts,
-              "encoder": math.hypot(boot.bend.get(name, 0.0) * scale, ENCODER_FLOOR * abs(value)) if encoder else 0.0}
+              "encoder": math.hypot(boot.bend.get(name, 0.0) * scale * (ONE_WAY_BEND / BEND if one_way else 1.0),
+                                    ENCODER_FLOOR * abs(value)) if encoder else 0.0}
     half = math.hypot(z * math.sqrt(sum(s * s for s in shares.values())), gap, rival)
     shares["gap"] = abs(gap)
     shares["rivals"] = abs(rival)
@@ -488,7 +496,8 @@ def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
         restarts = est.std if est.n_runs > 1 and name not in own else 0.0
         rival = max((abs(r.value(name) - path_value) for r in rivals(result, name)), default=0.0) * ratio
         iv = combine(est.value, boot, name, rate_std=rate_std, relative=(calibration or {}).get(name, 0.0),
-                     restarts=restarts, gap=gap, encoder=learned, scale_std=scale_std, rival=rival)
+                     restarts=restarts, gap=gap, encoder=learned, scale_std=scale_std, rival=rival,
+                     one_way=learned and bool(result.checks.get("one_way")))
         if iv is not None:
             out[name] = iv
     return out, boot
