@@ -203,3 +203,19 @@ def test_a_pivot_moved_by_its_uncertainty_is_read_as_the_angles_about_it():
     moved = abs(off.values["g1"] - truth["g1"])
     assert moved > 1e-4 * truth["g1"]  # a large swing's damping moves with the pivot's height
     assert boot.geometry["g1"] == pytest.approx(moved, rel=0.3)
+
+
+def test_a_large_damped_swing_of_two_periods_hangs_where_its_turning_points_say():
+    """46 degrees, decaying, two periods, started at a turning point: the median angle (where too
+    few crossings left the old estimate) leans to the side of the first swing by degrees; the
+    turning points' middle finds the hanging direction, and sin(theta) then has the right zero."""
+    for amplitude, n in ((0.8, 130), (0.8, 101), (0.3, 130)):
+        t = np.arange(n) / 30
+        theta = amplitude * np.exp(-0.3 * t) * np.cos(3.5 * t)
+        hang = 0.05
+        xy = np.column_stack([128 + 100 * np.sin(theta + hang), 15 + 100 * np.cos(theta + hang)])
+        xy += np.random.default_rng(n).normal(0, 0.3, xy.shape)
+        c = fit_circle(xy)
+        measured, _ = angles(xy, c)
+        offset = float(np.median(-measured - theta))
+        assert abs(offset) < 0.01, (amplitude, n, offset)
