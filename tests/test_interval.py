@@ -166,7 +166,8 @@ def test_the_interval_reaches_a_rival_restart_the_clip_cannot_rule_out():
 
 def test_a_one_way_latent_through_a_free_encoder_takes_the_wider_bend():
     """A learned latent that runs one way (checks["one_way"], a drain through a free encoder) is
-    bent ONE_WAY_BEND of its spread, not BEND, in the encoder's share; a measured path takes none."""
+    bent ONE_WAY_BEND of its spread, not BEND, in the encoder's share; a measured path takes none,
+    a linear readout the plain BEND."""
     from tests.test_assess import _result, _run
     system = parse("x'' = -k*x")
     shares = {}
@@ -184,3 +185,7 @@ def test_a_one_way_latent_through_a_free_encoder_takes_the_wider_bend():
     measured.latent = measured.latent + 1e-3 * np.random.default_rng(3).normal(size=measured.latent.shape)
     measured.checks = {"one_way": True}
     assert iv.result_intervals(measured, system, {})[0]["k"].shares["encoder"] == 0.0
+    linear = _result([_run(0, 1.0)], selected=[0])  # a lamp's one pattern read linearly cannot bend so
+    linear.latent = linear.latent + 1e-3 * np.random.default_rng(3).normal(size=linear.latent.shape)
+    linear.checks, linear.settings = {"one_way": True}, {**linear.settings, "encoder": "linear"}
+    assert iv.result_intervals(linear, system, {})[0]["k"].shares["encoder"] == pytest.approx(shares[False], rel=1e-6)

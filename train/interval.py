@@ -70,7 +70,9 @@ ENCODER_FLOOR = 0.002
 # a one-way path (a drain, a decay) bent by a free encoder is bent farther, unseen: nothing in the
 # frames repeats to hold the readout straight, and the verdict calls it not trustworthy for that.
 # Its bends are taken ONE_WAY_BEND of its spread (set on the generated drains of `coverage.py
-# --cases drain`, k 1.5-6.4% high with the 1% bend's share at 0.4-0.7% of k)
+# --cases drain`, k 1.5-6.4% high with the 1% bend's share at 0.4-0.7% of k). A linear readout
+# (the brightness observation's, of a lamp's one pattern) cannot bend a path so: a lamp stored as
+# linear light, 0.01% off, was given +-7% by it and called ambiguous
 ONE_WAY_BEND = 0.05
 BLOCK_TIMES = 3  # blocks three autocorrelation times long: what is left is block_bias's
 MAX_RHO = 0.98
@@ -497,7 +499,7 @@ def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
         rival = max((abs(r.value(name) - path_value) for r in rivals(result, name)), default=0.0) * ratio
         iv = combine(est.value, boot, name, rate_std=rate_std, relative=(calibration or {}).get(name, 0.0),
                      restarts=restarts, gap=gap, encoder=learned, scale_std=scale_std, rival=rival,
-                     one_way=learned and bool(result.checks.get("one_way")))
+                     one_way=learned and bool(result.checks.get("one_way")) and settings.get("encoder") != "linear")
         if iv is not None:
             out[name] = iv
     return out, boot
