@@ -16,7 +16,7 @@ _WHERE = {
     "ObservationModel": "base", "MeasuredObservation": "base", "Prepared": "base", "CHECKS": "base",
     "BrightnessObservation": "brightness", "PositionObservation": "position", "AngleObservation": "angle",
     "fit_circle": "circle", "Circle": "circle", "Track": "track",
-    "SizeObservation": "size", "DistanceObservation": "size", "PerStateObservation": "per_state",
+    "SizeObservation": "size", "DistanceObservation": "size", "LevelObservation": "level", "read_level": "level", "PerStateObservation": "per_state",
     "resolve_observation": "auto", "named_model": "auto", "look": "auto", "Look": "auto",
     "centroids": "tracking", "mend_one_way": "tracking", "mend_strays": "tracking", "mend": "tracking", "line_of_motion": "tracking", "one_way": "tracking",
     "noise_level": "tracking", "ONE_WAY": "tracking",

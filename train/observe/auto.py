@@ -19,6 +19,7 @@ from .base import ObservationModel
 from .brightness import BrightnessObservation
 from .catalog import AUTO, model_class, parse_observe, split_object
 from .circle import Circle, fit_circle
+from .level import Level, LevelObservation, read_level
 from .position import PositionObservation, axis_of
 from .subspace import SUBSPACE_JUMP
 from .track import Track
@@ -35,6 +36,7 @@ THIN = 0.05
 # straight path bowed a few pixels by the lens or by stray frames fits a circle too, with a
 # centre far away (the real drop: 35567 pixels, 0.048 rad)
 SPAN = 0.1
+MIN_LEVEL_TRAVEL = 1.0  # pixels a water line must travel to be read as a level
 
 
 def named_model(name: str, light: str = "auto") -> ObservationModel:
@@ -94,6 +96,14 @@ def _resolved(spec, system, frames, light, encoder, source, track) -> Observatio
         return model
     from fitode.eqparse.identify import power_symmetric  # sympy: only when a fit is set up
     seen = look(frames, track) if frames is not None else None
+    level = _level(system, frames)
+    if level is not None:
+        model = LevelObservation()
+        model.reason = (f"level (auto: a single first-order state named along the image's vertical "
+                        f"({system.states[0]} up), and the frames show a horizontal edge that moves "
+                        f"{level.travel:.1f} pixels one way (rank correlation {one_way(level.height):.2f} with time): "
+                        "its height, read from the shift of the rows' profile, is the state)")
+        return model
     if seen is not None and seen.moves and seen.one_way >= ONE_WAY:
         model = PositionObservation()
         model.reason = (f"position (auto: the change moves {seen.travel:.0f} pixels, {seen.travel / seen.size:.0f}x its "
@@ -135,6 +145,20 @@ def _resolved(spec, system, frames, light, encoder, source, track) -> Observatio
         model.reason = ("any (auto: the change moves back and forth; the linear encoder keeps the rate)"
                         if seen is not None else "any (auto: no frames to look at)")
     return model
+
+
+def _level(system, frames: torch.Tensor | None) -> Level | None:
+    """The water line a single first-order state named along the vertical (h' = -k*sqrt(h)) is
+    read from, where the frames show one that moves one way; None otherwise."""
+    if frames is None or len(system.states) != 1 or axis_of(system.states[0]) != "y":
+        return None
+    if system.orders[system.states[0]] != 1:
+        return None
+    step = max(1, frames.shape[0] // LOOK_FRAMES)
+    level = read_level(frames[::step])
+    if level is None or not level.is_level or level.travel < MIN_LEVEL_TRAVEL:
+        return None
+    return level if one_way(level.height) >= ONE_WAY else None
 
 
 @dataclass

@@ -40,6 +40,10 @@ MODELS: dict[str, Entry] = {
                    "the angle in radians about the pivot of a circle fitted robustly to the tracked path, from the "
                    "direction it hangs in: the state in its own units, with no gauge to learn (a position would read "
                    "L sin(theta))"),
+    "level": Entry("level", "LevelObservation", "the height of a water line that rises or falls",
+                   "the height of a horizontal edge (a water line) that moves up or down, from the shift of the "
+                   "rows' profile across the tank, read linearly: no bend of the latent, and nothing floating on "
+                   "the water mixed in"),
     "size": Entry("size", "SizeObservation", "the apparent radius of what grows or shrinks",
                   "the apparent radius of what grows or shrinks, read linearly: no bend of the latent"),
     "distance": Entry("size", "DistanceObservation", "its reciprocal: motion along the line of sight",
@@ -55,11 +59,13 @@ def auto_rule(power_symmetric: bool) -> list[str]:
     """The rule behind "auto" (fitode.train.observe.auto.resolve_observation), in prose, for an
     equation that is (or is not) a single first-order linear equation, whose rate a bend of the
     latent would change."""
+    level = ("auto -> level for a single first-order state named along the vertical (h, y, z) where the frames "
+             "show a horizontal edge that moves one way: " + MODELS["level"].line)
     moving = ("auto -> position where the change moves one way (a fall, a slide, a level), or where it moves and "
               "every state's name says its image axis (x across; y, h, z up): " + MODELS["position"].line)
     if not power_symmetric:
-        return [moving, "elsewhere any, as no constant follows a bend of the latent: " + MODELS["any"].line]
-    return [moving, "brightness where the change stays in place (it brightens or dims): " + MODELS["brightness"].line,
+        return [level, moving, "elsewhere any, as no constant follows a bend of the latent: " + MODELS["any"].line]
+    return [level, moving, "brightness where the change stays in place (it brightens or dims): " + MODELS["brightness"].line,
             "where it moves back and forth: any, with the linear encoder, which removes the bend only"]
 
 
