@@ -26,8 +26,9 @@ from .drawing import record
 from .tracking import noise_level
 
 CORE = 0.5  # the tank's core: the columns around the most changing one that change at least this share of it
-TANK = 0.1  # ... and the tank: the columns around it whose band of rows changes at least this share of it
-MARGIN = 2  # rows added to each side of the band that changes, so that its ends lie on the plateaus
+TANK = 4.0  # ... and the tank: the columns around it whose band of rows changes this many spreads beyond the rest
+BAND = 0.25  # the rows whose largest change is at least this share of the largest row's are the line's band
+MARGIN = 3  # rows added to each side of the band that changes, so that its ends lie on the plateaus
 STEP = 6.0  # the step across the band must be this many times the profile's noise
 
 
@@ -60,15 +61,22 @@ def read_level(frames: torch.Tensor, fit_frames: int | None = None) -> Level | N
     gray = frames.double().mean(dim=1)
     n = gray.shape[0] if fit_frames is None else int(fit_frames)
     change = gray - gray[:n].median(dim=0).values
-    columns = change[:n].abs().sum(dim=(0, 1))
-    left, right = _run(columns, CORE)
+    # only what changes beyond the noise: summed over a tall frame, the noise of every column
+    # would outweigh a few rows of water line
+    heat = change[:n].abs()
+    columns = torch.where(heat > 3 * noise_level(heat), heat, torch.zeros_like(heat)).sum(dim=(0, 1))
+    left, right = _run(columns, floor=CORE * float(columns.max()))
     profile = gray[:, :, left:right + 1].mean(dim=2)
     rows = _band(profile, n)
     if rows is None:
         return None
-    # the tank is wider than the core, which is where a floating ball drifts: every column whose
-    # band of rows changes at least TANK of the most changing column's
-    left, right = _run(change[:n, rows[0]:rows[1] + 1].sum(dim=1).abs().mean(dim=0), TANK)
+    # the tank is wider than the core, which is where a floating ball drifts: every column next to
+    # it whose band of rows changes beyond what the columns away from the tank show (their median
+    # and TANK times their spread)
+    per_column = change[:n, rows[0]:rows[1] + 1].sum(dim=1).abs().mean(dim=0)
+    middle = per_column.median()
+    spread = 1.4826 * (per_column - middle).abs().median()
+    left, right = _run(per_column, floor=float(middle + TANK * spread))
     profile = gray[:, :, left:right + 1].mean(dim=2)
     rows = _band(profile, n) or rows
     median = profile[:n].median(dim=0).values
@@ -76,14 +84,14 @@ def read_level(frames: torch.Tensor, fit_frames: int | None = None) -> Level | N
     noise = float(noise_level((profile[:n] - median).abs())) + 1e-12
     if abs(step) < STEP * noise:
         return None
-    height = (profile[:, rows[0]:rows[1] + 1] - median[rows[0]:rows[1] + 1]).sum(dim=1) / step
+    total = (profile[:, rows[0]:rows[1] + 1] - median[rows[0]:rows[1] + 1]).sum(dim=1)
+    height = total / step
     return Level(height, (left, right), rows, step)
 
 
-def _run(values: torch.Tensor, share: float) -> tuple[int, int]:
-    """The run of indices around the largest value whose values are at least share of it."""
+def _run(values: torch.Tensor, floor: float) -> tuple[int, int]:
+    """The run of indices around the largest value whose values are at least floor."""
     j = int(values.argmax())
-    floor = share * float(values[j])
     a = b = j
     while a > 0 and float(values[a - 1]) >= floor:
         a -= 1
@@ -93,10 +101,13 @@ def _run(values: torch.Tensor, share: float) -> tuple[int, int]:
 
 
 def _band(profile: torch.Tensor, n: int) -> tuple[int, int] | None:
-    """The rows [top, bottom] where the row profile (T, H) changes beyond its noise, widened by
-    MARGIN; None where no row does."""
-    change = profile[:n] - profile[:n].median(dim=0).values
-    strong = torch.nonzero(change.abs().amax(dim=0) > 6 * noise_level(change.abs())).flatten()
+    """The rows [top, bottom] where the row profile (T, H) changes beyond its noise and by BAND of
+    its largest change, widened by MARGIN; None where no row does. (The water's shade, darker with
+    depth below its surface, changes a little down to the tank's floor as the level drops: that
+    is no part of the line's band.)"""
+    change = (profile[:n] - profile[:n].median(dim=0).values).abs()
+    largest = change.amax(dim=0)
+    strong = torch.nonzero(largest > max(6 * float(noise_level(change)), BAND * float(largest.max()))).flatten()
     if len(strong) == 0:
         return None
     top = max(int(strong.min()) - MARGIN, 0)

@@ -1,0 +1,68 @@
+"""The level observation (train/observe/level.py): the height of a water line read from the shift
+of the rows' profile, and the auto choice of it for a drain."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+import fitode
+from fitode import synth
+from fitode.eqparse import parse
+from fitode.train.observe import LevelObservation, PositionObservation, read_level, resolve_observation
+from fitode.train.observe.tracking import centroids, line_of_motion
+
+
+def _drain(seed: int = 3):
+    v = synth.scene("torricelli", 0.016, size=(72, 128), duration=3.0, noise=1.0, seed=seed)
+    return v, v.as_tensor_frames()
+
+
+def _misfit(reading: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+    """The slope of the best affine map from the truth to a reading, and the reading's rms about
+    it as a share of its travel."""
+    a = np.c_[truth, np.ones_like(truth)]
+    coef, *_ = np.linalg.lstsq(a, reading, rcond=None)
+    rest = reading - a @ coef
+    return float(coef[0]), float(rest.std() / (reading.max() - reading.min()))
+
+
+def test_the_level_follows_the_water_line_of_a_drain_with_a_ball_floating_on_it():
+    v, frames = _drain()
+    level = read_level(frames)
+    assert level is not None and level.is_level
+    slope, misfit = _misfit(level.height.numpy(), v.latent[:, 0])
+    # rows up per metre: the scene draws 0.62 of the frame's height for the tank's 0.30 m; the
+    # misfit is the frames' noise (0.2 pixels on a 4-pixel travel), with no trend left
+    assert slope > 0 and misfit < 0.08
+    assert 0.8 < slope / (0.62 * 72 / 0.30) < 1.25
+    # the centroid of the change (the position observation's reading) mixes the ball with the band
+    _, along = line_of_motion(centroids(frames)[0])
+    assert _misfit(along.numpy(), v.latent[:, 0])[1] > 2 * misfit
+
+
+def test_auto_reads_a_drain_as_a_level_and_leaves_the_lamp_and_other_equations_alone():
+    _, frames = _drain(seed=5)
+    picked = resolve_observation(None, parse("h' = -k*sqrt(h)"), frames)
+    assert isinstance(picked, LevelObservation) and "horizontal edge" in picked.reason
+    # a state that names no vertical, or a second-order one, is not a level
+    assert not isinstance(resolve_observation(None, parse("q' = -k*sqrt(q)"), frames), LevelObservation)
+    assert not isinstance(resolve_observation(None, parse("h'' = -k*h'"), frames), LevelObservation)
+    lamp = synth.scene("led", 1.2, size=(48, 64), duration=1.5, seed=1).as_tensor_frames()
+    assert not isinstance(resolve_observation(None, parse("h' = -k*h"), lamp), LevelObservation)
+    assert resolve_observation("level", parse("h' = -k*sqrt(h)"), frames).reason == "level (as asked)"
+
+
+def test_the_level_observation_reads_a_unit_column_and_refuses_frames_without_a_water_line():
+    _, frames = _drain()
+    model = resolve_observation("level", parse("h' = -k*sqrt(h)"), frames)
+    prepared = model.prepare(frames)
+    column = prepared.inputs.reshape(-1)
+    assert prepared.states == ("h",) and abs(float(column.std()) - 1) < 1e-3
+    assert float(column[0]) > float(column[-1])  # the level drops, read as a height
+    assert model.measured and not model.fixes_scale() and model.applies("direct")
+    lamp = synth.scene("led", 1.2, size=(48, 64), duration=1.5, seed=1).as_tensor_frames()
+    still = resolve_observation("level", parse("h' = -k*h"), lamp)
+    with pytest.raises(fitode.ConfigError, match="no water line"):
+        still.prepare(lamp)
+    assert not isinstance(resolve_observation(None, parse("h' = -k*sqrt(h)"), frames), PositionObservation)
