@@ -125,7 +125,7 @@ def readings(measurement: Mapping[str, Any] | None, latent, rollout, states) -> 
         with np.errstate(all="ignore"):
             fitted = to_reading(a * r[:, j] + b, inverse=False)
         fitted[~np.isfinite(fitted)] = np.nan
-        affine = (a, b) if how in ("line", "radius", "angle") else (float("nan"), float("nan"))
+        affine = (a, b) if how in ("line", "radius", "angle", "level") else (float("nan"), float("nan"))
         out.append(Reading(state, label, measured, fitted, to_points(fitted) if to_points else None, affine))
     return out
 
@@ -157,6 +157,9 @@ def _measured(m: Mapping[str, Any], how: str, track, n: int):
             return radii, "apparent radius\n(pixels of the source video)", same, None
         flip = lambda v, inverse: 1.0 / np.asarray(v, dtype=float)  # noqa: E731 - the latent is affine in 1/radius
         return radii, "apparent radius\n(pixels of the source video)", flip, None
+    if how == "level" and m.get("levels"):
+        levels = np.array([np.nan if v is None else v for v in m["levels"][:n]], dtype=float)
+        return levels, "height of the water line\n(rows of the frames fitted, up)", same, None
     if how == "angle" and m.get("pivot") is not None:
         pivot = np.asarray(m["pivot"], float)
         radius = float(m.get("radius") or np.nanmedian(np.hypot(*(track - pivot).T)))

@@ -9,6 +9,7 @@ import torch
 import fitode
 from fitode import synth
 from fitode.eqparse import parse
+from fitode.measurement import readings
 from fitode.train.observe import LevelObservation, PositionObservation, read_level, resolve_observation
 from fitode.train.observe.tracking import centroids, line_of_motion
 
@@ -61,6 +62,9 @@ def test_the_level_observation_reads_a_unit_column_and_refuses_frames_without_a_
     assert prepared.states == ("h",) and abs(float(column.std()) - 1) < 1e-3
     assert float(column[0]) > float(column[-1])  # the level drops, read as a height
     assert model.measured and not model.fixes_scale() and model.applies("direct")
+    # the record draws the height it read, to which the latent maps back affinely
+    (reading,) = readings(prepared.drawing, column[:, None].numpy(), column[:, None].numpy(), ["h"])
+    assert "water line" in reading.label and np.allclose(reading.fitted, reading.measured, atol=1e-4)
     lamp = synth.scene("led", 1.2, size=(48, 64), duration=1.5, seed=1).as_tensor_frames()
     still = resolve_observation("level", parse("h' = -k*h"), lamp)
     with pytest.raises(fitode.ConfigError, match="no water line"):

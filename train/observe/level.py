@@ -134,5 +134,6 @@ class LevelObservation(MeasuredObservation):
         note = (f"level: the height of the water line, the shift of the row profile of columns {left}-{right} over "
                 f"rows {top}-{bottom} (a step of {255 * abs(level.step):.0f} grey levels), travelling "
                 f"{level.travel:.1f} pixels, read linearly")
-        drawing = record(self.name, reading="level", region=[float(left), float(top), float(right), float(bottom)])
+        drawing = record(self.name, reading="level", levels=[float(v) for v in h],
+                         region=[float(left) - 0.5, float(top) - 0.5, float(right) + 0.5, float(bottom) + 0.5])
         return self.column(z.to(frames.dtype), out.components, note, None, drawing)
