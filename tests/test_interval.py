@@ -189,3 +189,22 @@ def test_a_one_way_latent_through_a_free_encoder_takes_the_wider_bend():
     linear.latent = linear.latent + 1e-3 * np.random.default_rng(3).normal(size=linear.latent.shape)
     linear.checks, linear.settings = {"one_way": True}, {**linear.settings, "encoder": "linear"}
     assert iv.result_intervals(linear, system, {})[0]["k"].shares["encoder"] == pytest.approx(shares[False], rel=1e-6)
+
+
+def test_a_rate_read_through_a_light_curve_the_frames_could_not_tell_reaches_the_other_curve():
+    """Where light.choose_curve could not tell sRGB from linear light, a decay rate's interval reaches
+    down to value / CURVE_POWER; a told curve, or a frequency squared, keeps its interval."""
+    system = parse("I' = -gamma*I")
+    t = np.arange(120) * 0.02
+    x = (np.exp(-1.5 * t) + 1e-3 * np.random.default_rng(0).normal(size=t.size))[:, None]
+    boot = iv.bootstrap(system, {}, x, 0.02, {"gamma": 1.4}, iterations=16)
+    plain = iv.combine(1.5, boot, "gamma")
+    wide = iv._light_curve(plain, boot, "gamma", {"light": "srgb", "told": False})
+    assert wide.low == pytest.approx(1.5 / iv.CURVE_POWER) and wide.high == plain.high
+    assert wide.shares["light curve"] == pytest.approx(1.5 - 1.5 / iv.CURVE_POWER) and wide.contains(0.7)
+    assert not plain.contains(0.7)
+    assert iv._light_curve(plain, boot, "gamma", {"light": "srgb", "told": True}) is plain
+    noisy = _oscillation(4.0, 0.1) + _ar1(np.random.default_rng(1), T, 0.0, 1e-4)
+    osc = iv.bootstrap(OSC, {}, noisy, DT, {"w2": 4.2, "c": 0.12}, iterations=8)
+    w2 = iv.combine(4.0, osc, "w2")
+    assert iv._light_curve(w2, osc, "w2", {"told": False}) is w2

@@ -74,6 +74,11 @@ ENCODER_FLOOR = 0.002
 # (the brightness observation's, of a lamp's one pattern) cannot bend a path so: a lamp stored as
 # linear light, 0.01% off, was given +-7% by it and called ambiguous
 ONE_WAY_BEND = 0.05
+# where the frames cannot tell the camera's light curve (light.choose_curve), a rate read through
+# the sRGB curve would be smaller by up to the curve's power read as linear light: the interval of
+# a rate reaches down that far (a linear-light lamp read as sRGB: gamma 0.998 for 0.574, with a
+# +-4% interval that held nothing)
+CURVE_POWER = 2.4
 BLOCK_TIMES = 3  # blocks three autocorrelation times long: what is left is block_bias's
 MAX_RHO = 0.98
 DAMPINGS = (1e-9, 1e-5, 1e-2, 1.0)  # Levenberg-Marquardt dampings tried at once, relative to the diagonal
@@ -501,8 +506,20 @@ def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
                      restarts=restarts, gap=gap, encoder=learned, scale_std=scale_std, rival=rival,
                      one_way=learned and bool(result.checks.get("one_way")) and settings.get("encoder") != "linear")
         if iv is not None:
-            out[name] = iv
+            out[name] = _light_curve(iv, boot, name, result.checks.get("light_curve"))
     return out, boot
+
+
+def _light_curve(iv: Interval, boot: Bootstrap, name: str, curve: Mapping | None) -> Interval:
+    """iv reaching down to value / CURVE_POWER where the frames could not tell the light curve and
+    the constant is a rate (it scales as 1/time: the frame rate's sensitivity near -1; a curve
+    bends an oscillation's envelope, not its period); else iv."""
+    along = boot.values.get(name) or 0.0
+    if not curve or curve.get("told", True) or not iv.value > 0 or not along > 0 \
+            or not -1.5 < boot.timing.get(name, 0.0) / along < -0.5:  # a frequency squared keeps its value
+        return iv
+    low = min(iv.low, iv.value / CURVE_POWER)
+    return Interval(low, iv.high, iv.value, {**iv.shares, "light curve": iv.value - low})
 
 
 def _path(result, best) -> np.ndarray:

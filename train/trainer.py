@@ -151,6 +151,9 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
                                      observation=observation)
     if prepared.caution:
         findings.append(Finding("ambiguous", prepared.caution))
+    curve = getattr(observation, "curve", None)  # the brightness observation's light curve, where it chose one
+    if curve is not None:
+        numbers["light_curve"] = {"light": curve.light, "told": curve.told}
     mended = mended_caution(prepared.mended, first, last)
     if mended:
         findings.append(Finding("ambiguous", mended))
