@@ -219,3 +219,16 @@ def test_a_large_damped_swing_of_two_periods_hangs_where_its_turning_points_say(
         measured, _ = angles(xy, c)
         offset = float(np.median(-measured - theta))
         assert abs(offset) < 0.01, (amplitude, n, offset)
+
+
+def test_a_small_swing_whose_string_sweeps_more_than_its_bob_travels_still_swings():
+    """The shrunk frames see a small swing's whole string change (a region larger than the bob's
+    travel), so they do not call it moving; the track sees the bob travel many times its size."""
+    from fitode.train.observe.auto import Look
+    rng = np.random.default_rng(0)
+    a = np.radians(8) * np.cos(np.linspace(0, 12 * np.pi, 300))
+    arc = fit_circle(np.column_stack([200 + 215 * np.sin(a), 20 + 215 * np.cos(a)]) + rng.normal(0, 0.1, (300, 2)))
+    shrunk = dict(travel=14.0, size=24.0, one_way=0.05, gap=1.3, circle=arc)
+    assert not Look(**shrunk).moves and not Look(**shrunk).swings
+    assert Look(**shrunk, followed=6.0).swings
+    assert not Look(**{**shrunk, "gap": 40.0}, followed=6.0).swings  # one pattern that brightens: a lamp

@@ -174,6 +174,10 @@ class Look:
     # the shares of the tracked path's travel its longest one-way run covers and its longest run the
     # other way (tracking.one_way_run; (0, 0): no track)
     run: tuple[float, float] = (0.0, 0.0)
+    # the tracked path's travel over the tracked object's size, both in source pixels (0: no track):
+    # a small swing's string sweeps a region larger than the bob's travel in the shrunk frames (a
+    # generated 8-degree swing: 14 pixels of travel against 24), while its bob travels 6 times its size
+    followed: float = 0.0
 
     @property
     def runs_one_way(self) -> bool:
@@ -191,7 +195,8 @@ class Look:
     def swings(self) -> bool:
         """It moves back and forth along an arc that clearly bends about a centre."""
         c = self.circle
-        return (self.moves and self.one_way < ONE_WAY and c is not None and c.significance >= SWING
+        moves = self.moves or (self.followed > 1 and self.gap < SUBSPACE_JUMP)
+        return (moves and self.one_way < ONE_WAY and c is not None and c.significance >= SWING
                 and c.thinness <= THIN and c.radius_error < 0.5 and c.span >= SPAN)
 
 
@@ -226,7 +231,8 @@ def look(frames: torch.Tensor, track: Track | None = None) -> Look:
         # a track that jumps to something else in some frames (a hand, the floor) looks back and
         # forth; the shrunk frames' centroids of the same clip may still see it run one way
         seen = Look(seen.travel, seen.size, max(seen.one_way, one_way(path[::step])), gap,
-                    fit_circle(track.filled()), one_way_run(path.numpy()))
+                    fit_circle(track.filled()), one_way_run(path.numpy()),
+                    float(path.max() - path.min()) / max(track.area, 1.0) ** 0.5)
     elif seen.moves:
         seen.circle = fit_circle(xy.double().cpu().numpy())
     return seen
