@@ -218,3 +218,13 @@ def test_coverage_list_is_fixed_covers_every_case_and_counts_as_defined():
     assert coverage.judge(outside_99)["false_trust"] and not coverage.judge(outside_99)["covered"]
     s = coverage.summary([trusted_far, right_doubted, outside_99])
     assert (s["covered"], s["false_trust"], s["false_alarm"], s["right"]) == (2, 2, 1, 1)
+
+
+def test_lightcurve_quick_counts_every_lamp_once(tmp_path, capsys):
+    assert cli.main(["bench", "lightcurve", "--quick", "--out", str(tmp_path), "--workers", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "told wrong" in out and "untold" in out
+    rec = json.loads((tmp_path / "lightcurve.json").read_text())
+    assert len(rec["lamps"]) == 4 and {r["curve"] for r in rec["lamps"]} == {"srgb", "linear"}
+    assert all(r["outcome"] in ("right", "wrong", "untold") for r in rec["lamps"])
+    assert all(r["outcome"] == "untold" or r["told"] is not None for r in rec["lamps"])
