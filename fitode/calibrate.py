@@ -357,6 +357,8 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     first, last = int(stretch.get("start_frame", 0)), int(stretch.get("end_frame", result.train_frames))
     fitted = _refit(system, params, x[first:last], result.dt, best, mapped_best, maps, options, seed)
     measured = _scale_powers(system, params, x[first:last], result.dt, fitted, maps, options, powers)
+    reading = _reading_share(system, params, points, time, latent, result.states, maps, fitted, (first, last),
+                             result.dt, options, [n for n, f in factors.items() if f is None])
     constants: dict[str, dict[str, Any]] = {}
     notes: list[str] = []
     if fitted is None:
@@ -382,7 +384,8 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
                            "best_run_before": ref, "converted": converted, "unfitted": unfitted,
                            "scale": scales[name],
                            "change": _rel(after, est.value),
-                           "relative_std": _relative_std(name, maps, rel_a, powers, measured)}
+                           "relative_std": math.hypot(_relative_std(name, maps, rel_a, powers, measured),
+                                                      reading.get(name, 0.0))}
     best_after = {n: mapped_best.get(n, fitted.values[n] if fitted is not None else best[n]) for n in system.learnable}
     rollout = _rollout(system, params, x, result.dt, best_after, settings)
     loss = fitted.misfit ** 2 if fitted is not None else math.nan
@@ -484,6 +487,47 @@ def _scale_powers(system, params, x: np.ndarray, dt: float, fitted, maps: Mappin
         if a and b and a * b > 0:
             out[n] = math.log(b / a) / math.log1p(SCALE_STEP)
     return out
+
+
+def _reading_share(system, params, points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.ndarray,
+                   states: Sequence[str], maps: Mapping[str, AffineMap], fitted, frames: tuple[int, int],
+                   dt: float, options: Mapping[str, Any], names: Sequence[str]) -> dict[str, float]:
+    """The relative std that the latent's reading at the points gives each constant refitted after
+    the map (no pure power: the drain's k, which the map's offset moves as well as its scale).
+    Each point's reading is moved by its error, the map fitted again and the calibrated path
+    refitted; the changes add in quadrature. A reading's error is what the path's residuals from
+    its fitted trajectory average to over the frames the reading averages (local_value), or the
+    local quadratic's standard error where larger: a level read with slow errors (0.4 mm over 1 s
+    of a generated drain) moves a reading that no scatter about a local quadratic shows, and the
+    scale's power alone (k as sqrt(a)) misses that a point moved turns the map about the other."""
+    if not names or fitted is None or len(maps) != 1 or fitted.windows is not None:
+        return {}
+    state, m = next(iter(maps.items()))
+    col = list(states).index(state)
+    column = np.asarray(latent, dtype=float)[:, col]
+    res = np.asarray(fitted.residuals, dtype=float).reshape(len(fitted.residuals), -1)[:, col] / abs(m.a)
+    width = 2 * LOCAL_HALF_WIDTH + 1
+    if len(res) < 2 * width or not np.all(np.isfinite(res)):
+        return {}
+    slow = float(np.sqrt(np.mean(np.convolve(res, np.ones(width) / width, mode="valid") ** 2)))
+    mine = [p for p in points if p.state == state]
+    z = np.array([local_value(time, column, p.time) for p in mine])
+    values = np.array([p.value for p in mine])
+    first, last = frames
+    var = dict.fromkeys(names, 0.0)
+    from fitode.train.trajectory import fit_trajectory
+    for i, p in enumerate(mine):
+        moved = z.copy()
+        moved[i] += max(slow, local_std(time, column, p.time))
+        (a, b), *_ = np.linalg.lstsq(np.stack([moved, np.ones_like(moved)], axis=1), values, rcond=None)
+        x = np.asarray(latent, dtype=float).copy()
+        x[:, col] = a * column + b
+        f = fit_trajectory(system, params, x[first:last], dt, fitted.values, **options)
+        if f is None:
+            return {}
+        for n in names:
+            var[n] += (f.values[n] - fitted.values[n]) ** 2
+    return {n: math.sqrt(var[n]) / abs(fitted.values[n]) for n in names if fitted.values.get(n)}
 
 
 def _relative_std(name: str, maps: Mapping[str, AffineMap], rel_a: Mapping[str, float],
