@@ -84,10 +84,10 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
     rate = rate_std(fps) if clip is not None else 0.0  # an array's dt is the user's
     track = None if clip is None else clip.track
     plan = api.plan(req, x, dt, track=track)
-    if clip is not None:  # as `fitode VIDEO` reads it: light decoded from sRGB is read again in colour
-        from fitode.pipeline import light_in_colour
-        clip, time_offset, plan = light_in_colour(frames_path, _read_options(video), req, clip, time_offset, plan,
-                                                  progress=progress)
+    if clip is not None:  # as `fitode VIDEO` reads it: light from sRGB in colour, a level in more detail
+        from fitode.pipeline import read_again
+        clip, time_offset, plan = read_again(frames_path, _read_options(video), req, clip, time_offset, plan,
+                                             progress=progress)
         x, track = api.as_frames(clip.frames), clip.track
     if len(reqs) > 1:
         from fitode.compare import compare
