@@ -213,11 +213,11 @@ def level_in_detail(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
     """(clip, t0, plan): the clip read again at up to LEVEL_SHORT on its short side (the source's
     own size where smaller) where the plan reads a level from shrunk frames: the level is read as
     a fraction of a row, and more rows read it finer. Not where the user gave --size, --roi or a
-    mask (the frames are then theirs)."""
+    mask (the frames are then theirs), nor where the frames read again show no level."""
     from dataclasses import replace
 
     from fitode import api
-    from fitode.train.observe.level import LevelObservation
+    from fitode.train.observe.level import LevelObservation, read_level
 
     parts = getattr(plan.observation, "parts", {"": plan.observation}).values()
     if read.size is not None or read.roi is not None or read.mask is not None \
@@ -229,9 +229,14 @@ def level_in_detail(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
     size = (max(1, round(hs * scale)), max(1, round(ws * scale)))
     if size[0] <= h:
         return clip, t0, plan
-    clip, t0 = read_clip(video, replace(read, size=size, stride=clip.stride), req.calibration, progress=progress)
+    finer, t1 = read_clip(video, replace(read, size=size, stride=clip.stride), req.calibration, progress=progress)
+    frames = api.as_frames(finer.frames)
+    level = read_level(frames, plan.n_train)
+    if level is None or not level.is_level:
+        # more rows can split what the shrunk frames saw as one line (the real bottle at 360 rows)
+        return clip, t0, plan
     req = replace(req, observe=plan.observation)
-    return clip, t0, api.plan(req, api.as_frames(clip.frames), clip.dt, track=clip.track)
+    return finer, t1, api.plan(req, frames, finer.dt, track=finer.track)
 
 
 def light_in_colour(video, read: ReadOptions, req, clip, t0: float, plan, *, progress: bool = False):
