@@ -219,15 +219,13 @@ def level_in_detail(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
     from fitode import api
     from fitode.train.observe.level import LevelObservation, read_level
 
-    parts = getattr(plan.observation, "parts", {"": plan.observation}).values()
     if read.size is not None or read.roi is not None or read.mask is not None \
-            or not any(isinstance(p, LevelObservation) for p in parts):
+            or not any(isinstance(p, LevelObservation) for p in _observation_parts(plan)):
         return clip, t0, plan
     hs, ws = clip.source_size
-    h, w = (int(n) for n in clip.frames.shape[-2:])
     scale = min(1.0, LEVEL_SHORT / min(hs, ws))
     size = (max(1, round(hs * scale)), max(1, round(ws * scale)))
-    if size[0] <= h:
+    if size[0] <= int(clip.frames.shape[-2]):
         return clip, t0, plan
     finer, t1 = read_clip(video, replace(read, size=size, stride=clip.stride), req.calibration, progress=progress)
     frames = api.as_frames(finer.frames)
@@ -237,6 +235,11 @@ def level_in_detail(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
         return clip, t0, plan
     req = replace(req, observe=plan.observation)
     return finer, t1, api.plan(req, frames, finer.dt, track=finer.track)
+
+
+def _observation_parts(plan):
+    """The plan's observation models: each state's where states are observed apart, else the one."""
+    return getattr(plan.observation, "parts", {"": plan.observation}).values()
 
 
 def light_in_colour(video, read: ReadOptions, req, clip, t0: float, plan, *, progress: bool = False):
@@ -250,8 +253,8 @@ def light_in_colour(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
     from fitode import api
     from fitode.train.observe.brightness import BrightnessObservation
 
-    parts = getattr(plan.observation, "parts", {"": plan.observation}).values()
-    if read.color or not any(isinstance(p, BrightnessObservation) and p.light == "srgb" for p in parts):
+    if read.color or not any(isinstance(p, BrightnessObservation) and p.light == "srgb"
+                             for p in _observation_parts(plan)):
         return clip, t0, plan
     clip, t0 = read_clip(video, replace(read, color=True, stride=clip.stride), req.calibration, progress=progress)
     req = replace(req, observe=plan.observation)
