@@ -103,6 +103,32 @@ def star_blob(cx: float, cy: float, radius: float, amps: np.ndarray, phases: np.
     return sdf
 
 
+def hand(cx: float, cy: float, size: float, angle: float = 0.0) -> Sdf:
+    """A hand-like blob: a palm of `size` pixels across at (cx, cy) and four fingers and a thumb
+    reaching out along `angle` (radians, clockwise on screen), as a hand that pinches something
+    at (cx, cy) + 0.9 size (cos angle, sin angle) would be drawn at this scale."""
+    c, s = np.cos(angle), np.sin(angle)
+    palm = box(cx, cy, 0.5 * size, 0.42 * size, angle, radius=0.2 * size)
+    parts = [palm]
+    for k, (along, across, length) in enumerate(((0.45, -0.3, 0.45), (0.5, -0.1, 0.5), (0.5, 0.1, 0.48),
+                                                 (0.45, 0.28, 0.4))):
+        ax, ay = cx + along * size * c - across * size * s, cy + along * size * s + across * size * c
+        parts.append(segment(ax, ay, ax + length * size * c, ay + length * size * s, 0.09 * size))
+    tx, ty = cx + 0.2 * size * c + 0.4 * size * s, cy + 0.2 * size * s - 0.4 * size * c
+    parts.append(segment(tx, ty, tx + 0.45 * size * c + 0.1 * size * s, ty + 0.45 * size * s - 0.1 * size * c,
+                         0.1 * size))
+    return union(*parts)
+
+
+def scale_marks(canvas: "Canvas", a: tuple[float, float], b: tuple[float, float], size: float = 4.0) -> None:
+    """Two dark cross-hair marks (tape on a wall, a ruler's ends) at the pixel points a and b, the
+    reference a user measures a scale from."""
+    for x, y in (a, b):
+        bbox = (x - size - 2, y - size - 2, x + size + 2, y + size + 2)
+        canvas.paint(union(segment(x - size, y, x + size, y, 0.6), segment(x, y - size, x, y + size, 0.6)),
+                     0.05, bbox)
+
+
 def union(*sdfs: Sdf) -> Sdf:
     return lambda x, y: np.minimum.reduce([f(x, y) for f in sdfs])
 

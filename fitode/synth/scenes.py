@@ -693,6 +693,196 @@ def _throw(g, rng, duration, dt, h, w, p) -> _Scene:
                   state=np.stack([y, vel], axis=1), state_names=("y", "y'"))
 
 
+# --- clips as they are filmed: a hold, a release, bounces -------------------------------------
+
+def _scale_truth(a, b, metres: float) -> dict:
+    """The scale a user reads off two marks in view: their pixel points and the distance between
+    them in metres, in the plane of the motion (the text --scale takes)."""
+    pts = [round(float(v), 2) for v in (*a, *b)]
+    return {"points": pts, "metres": float(metres),
+            "text": f"{pts[0]:g},{pts[1]:g},{pts[2]:g},{pts[3]:g}={metres:g}"}
+
+
+def _flights(x0: float, v0: float, a: float, e: float, bounces: int, t: np.ndarray):
+    """Position and velocity at times t (t < 0: held at x0) of a thing thrown from x0 >= 0 with
+    velocity v0 against a constant pull a toward x = 0, where it bounces back with restitution e,
+    `bounces` times; and the times of the bounces and of the end of the last flight."""
+    times, starts = [], []
+    tt, x, v = 0.0, x0, v0
+    for k in range(bounces + 1):
+        land = (v + np.sqrt(v * v + 2 * a * x)) / a  # x + v s - a s^2 / 2 = 0
+        starts.append((tt, x, v))
+        tt += land
+        times.append(tt)
+        x, v = 0.0, e * (a * land - v)
+    pos, vel = np.full(len(t), float(x0)), np.zeros(len(t))
+    for (t0, xs, vs), t1 in zip(starts, times):
+        m = (t >= t0) & (t < t1)
+        s = t[m] - t0
+        pos[m], vel[m] = xs + vs * s - 0.5 * a * s * s, vs - a * s
+    pos[t >= times[-1]] = 0.0
+    return pos, vel, times
+
+
+def _held_pendulum(L, rng, duration, dt, h, w, p) -> _Scene:
+    """A dark ball on a string too thin to see, the pivot above the frame: a hand holds it at
+    theta0 for `hold` seconds, lets go and moves away; the ball swings from rest."""
+    from fitode.synth.trajectory import simulate_system
+
+    if not 0.05 <= L <= 20:
+        raise FitodeError(f"pendulum length L must be between 0.05 and 20 m, got {L}")
+    zeta = float(p.get("zeta", rng.uniform(0.01, 0.05)))
+    theta0 = np.deg2rad(float(p.get("theta0_deg", rng.uniform(40.0, 60.0))))
+    hold = float(p.get("hold", rng.uniform(1.0, 2.0)))
+    if not (0 < theta0 < np.pi / 2 and hold >= 0):
+        raise FitodeError("theta0_deg must be between 0 and 90 degrees and hold not negative")
+    n = _frame_count(duration, np.inf, dt, "the pendulum")
+    held = min(int(round(hold / dt)), n)
+    swing, names, state, snames = simulate_system(pendulum_system(), {"L": L, "zeta": zeta},
+                                                  {"theta": theta0, "theta'": 0.0}, max(n - held, 2), dt,
+                                                  substeps=20)
+    theta = np.concatenate([np.full(held, theta0), swing[:, 0]])[:n]
+    omega = np.concatenate([np.zeros(held), state[:, 1]])[:n]
+    side = float(rng.choice([-1.0, 1.0]))
+    theta, omega = side * theta, side * omega
+    bob_m = 0.03
+    # the swing fills the width, the lowest point near the bottom: the pivot is above the frame
+    reach = rng.uniform(0.85, 0.95) * min(0.46 * w / np.sin(theta0), 0.8 * h / (1 - np.cos(theta0)))
+    ppm = reach / L
+    px, py = w / 2 + rng.uniform(-0.03, 0.03) * w, 0.84 * h - reach
+    rb = max(bob_m * ppm, 3.0)
+
+    bg = _wall(rng, h, w, base=(0.8, 0.78, 0.72))
+    cv = R.Canvas(bg, 4)
+    # tape marks on the wall, 20 cm apart, below the swing
+    gap = 0.2 if 0.2 * ppm < 0.6 * w else 0.6 * w / ppm
+    ma = (w / 2 - gap * ppm / 2, 0.95 * h)
+    mb = (w / 2 + gap * ppm / 2, 0.95 * h)
+    R.scale_marks(cv, ma, mb)
+    skin = _rgb(0.78, 0.52, 0.4)
+    size = 2.6 * rb
+    speed = rng.uniform(0.6, 1.0) * h  # px/s: the hand is out of the frame in about a second
+
+    def draw(c: R.Canvas, i: int) -> None:
+        bx, by = px + L * ppm * np.sin(theta[i]), py + L * ppm * np.cos(theta[i])
+        c.paint(R.segment(px, py, bx, by, 0.2), _rgb(0.2, 0.2, 0.2),
+                (min(px, bx) - 2, min(py, by) - 2, max(px, bx) + 2, max(py, by) + 2), opacity=0.25)
+        c.paint(R.circle(bx, by, rb), R.sphere_shade(bx, by, rb, (0.07, 0.07, 0.08), specular=0.3),
+                (bx - rb, by - rb, bx + rb, by + rb))
+        # the hand pinches the ball from outside and below, then draws back out of the view
+        out = np.array([side * 0.8, 0.6])
+        hx, hy = np.array([px + L * ppm * np.sin(side * theta0), py + L * ppm * np.cos(side * theta0)]) \
+            + out * (0.95 * size + rb)
+        away = max(0.0, (i - held) * dt)
+        hx, hy = hx + out[0] * speed * away, hy + out[1] * speed * away
+        r = 2 * size
+        c.paint(R.hand(hx, hy, size, float(np.arctan2(-out[1], -out[0]))), skin, (hx - r, hy - r, hx + r, hy + r))
+
+    return _Scene(background=cv.image, draw=draw, latent=theta[:, None], latent_names=("theta",),
+                  truth={"L": L, "zeta": zeta},
+                  physical={"g": G, "L": L, "zeta": zeta, "theta0_deg": float(np.rad2deg(side * theta0)),
+                            "hold_s": held * dt, "release_frame": held, "pixels_per_metre": float(ppm),
+                            "pivot_px": [float(px), float(py)], "substeps": 20,
+                            "scale": _scale_truth(ma, mb, gap)},
+                  state=np.stack([theta, omega], axis=1), state_names=("theta", "theta'"))
+
+
+def _bumper_cart(a, rng, duration, dt, h, w, p) -> _Scene:
+    """A cart on a gentle incline held still, let go, rolling down into the bumper at the foot of
+    the track and climbing again `bounces` times (restitution e): x'' = -a up the track."""
+    if not 0.05 <= a <= 5.0:
+        raise FitodeError(f"the cart's acceleration a must be between 0.05 and 5 m/s^2, got {a}")
+    e = float(p.get("restitution", rng.uniform(0.75, 0.9)))
+    bounces = int(p.get("bounces", 5))
+    track = 1.2
+    x0 = float(p.get("x0", rng.uniform(0.7, 0.9) * track))
+    rest_before = float(p.get("rest_before", rng.uniform(0.3, 0.8)))
+    if not (0 < e <= 1 and bounces >= 0 and 0 < x0 <= track):
+        raise FitodeError("restitution must be in (0, 1], bounces >= 0 and x0 on the track (0 to 1.2 m)")
+    _, _, times = _flights(x0, 0.0, a, e, bounces, np.zeros(1))
+    n = _frame_count(duration, rest_before + times[-1] - 2 * dt, dt, "the cart's flights")
+    t = np.arange(n) * dt - rest_before
+    x, v, _ = _flights(x0, 0.0, a, e, bounces, t)
+    alpha = float(np.arcsin(min(a / G, 1.0)))
+    shown = max(alpha, np.deg2rad(rng.uniform(4, 8)))  # drawn a little steeper than its pull: friction
+    ppm = rng.uniform(0.8, 0.9) * w / (track + 0.15)
+    bx0, by0 = 0.08 * w, 0.8 * h  # the bumper, at the foot of the track on the left
+    d = np.array([np.cos(shown), -np.sin(shown)])  # up the track on screen
+    nrm = np.array([-np.sin(shown), -np.cos(shown)])  # out of the track
+    cl, ch = 0.1, 0.04
+    bg = _wall(rng, h, w, base=(0.76, 0.78, 0.8), light_from=(0.6, 0.0))
+    cv = R.Canvas(bg, 4)
+    end = np.array([bx0, by0]) + d * (track + 0.1) * ppm
+    cv.paint(R.segment(bx0, by0, end[0], end[1], 2.0), _rgb(0.45, 0.45, 0.48),
+             (bx0 - 3, end[1] - 3, end[0] + 3, by0 + 3))
+    cv.paint(R.box(bx0 - 3, by0 - 8, 3, 9, shown), _rgb(0.7, 0.1, 0.1), (bx0 - 12, by0 - 20, bx0 + 6, by0 + 4))
+    gap = 0.5
+    ma = np.array([bx0, by0]) + d * 0.3 * ppm - nrm * 6
+    mb = ma + d * gap * ppm
+    R.scale_marks(cv, tuple(ma), tuple(mb))
+    body = _rgb(0.1, 0.3, 0.65)
+
+    def draw(c: R.Canvas, i: int) -> None:
+        centre = np.array([bx0, by0]) + d * (x[i] + cl / 2) * ppm + nrm * (ch / 2 * ppm + 3)
+        r = (cl + ch) * ppm + 4
+        c.paint(R.box(centre[0], centre[1], cl / 2 * ppm, ch / 2 * ppm, -shown, radius=1.0), body,
+                (centre[0] - r, centre[1] - r, centre[0] + r, centre[1] + r))
+        for k in (-0.3, 0.3):
+            wx, wy = centre + d * k * cl * ppm - nrm * (ch / 2 * ppm + 1)
+            c.paint(R.circle(wx, wy, 2.5), 0.05, (wx - 4, wy - 4, wx + 4, wy + 4))
+
+    first = int(np.ceil(rest_before / dt))
+    return _Scene(background=cv.image, draw=draw, latent=x[:, None], latent_names=("x",),
+                  truth={"a": float(a)},
+                  physical={"a": float(a), "a_px": float(a * ppm), "restitution": e, "bounces": bounces,
+                            "release_frame": first, "bounce_s": [rest_before + tb for tb in times[:-1]],
+                            "alpha_deg": float(np.rad2deg(alpha)), "pixels_per_metre": float(ppm),
+                            "scale": _scale_truth(ma, mb, gap)},
+                  state=np.stack([x, v], axis=1), state_names=("x", "x'"))
+
+
+def _bouncing_ball(g, rng, duration, dt, h, w, p) -> _Scene:
+    """A ball held still, dropped and bouncing `bounces` times off the floor (restitution e),
+    seen side-on in front of a wall: y'' = -g, y up."""
+    if not 0.5 <= g <= 50:
+        raise FitodeError(f"g must be between 0.5 and 50 m/s^2, got {g}")
+    e = float(p.get("restitution", rng.uniform(0.75, 0.9)))
+    bounces = int(p.get("bounces", 4))
+    drop = float(p.get("h0", rng.uniform(0.8, 1.0)))
+    rest_before = float(p.get("rest_before", rng.uniform(0.3, 0.6)))
+    radius = 0.03
+    if not (0 < e <= 1 and bounces >= 0 and drop > 0):
+        raise FitodeError("restitution must be in (0, 1], bounces >= 0 and h0 positive")
+    _, _, times = _flights(drop, 0.0, g, e, bounces, np.zeros(1))
+    n = _frame_count(duration, rest_before + times[-1] - 2 * dt, dt, "the ball's bounces")
+    t = np.arange(n) * dt - rest_before
+    y, v, _ = _flights(drop, 0.0, g, e, bounces, t)
+    ppm = rng.uniform(0.75, 0.85) * h / (drop + 2 * radius)
+    floor_y = 0.9 * h
+    cx = w / 2 + rng.uniform(-0.1, 0.1) * w
+    rb = radius * ppm
+    bg = _wall(rng, h, w, base=(0.8, 0.79, 0.76), light_from=(0.2, 0.0))
+    _paste_rows(bg, int(floor_y), _wood(rng, h - int(floor_y), w, base=(0.5, 0.42, 0.33)))
+    cv = R.Canvas(bg, 4)
+    gap = 0.5  # a ruler's two ends on the wall, half a metre apart, up the wall
+    ma = (cx + 0.25 * w, floor_y - 0.1 * ppm)
+    mb = (cx + 0.25 * w, floor_y - 0.6 * ppm)
+    R.scale_marks(cv, ma, mb)
+
+    def draw(c: R.Canvas, i: int) -> None:
+        bx, by = cx, floor_y - (y[i] + radius) * ppm
+        c.paint(R.circle(bx, by, rb), R.sphere_shade(bx, by, rb, (0.85, 0.3, 0.1)),
+                (bx - rb - 1, by - rb - 1, bx + rb + 1, by + rb + 1))
+
+    return _Scene(background=cv.image, draw=draw, latent=y[:, None], latent_names=("y",),
+                  truth={"g": float(g)},
+                  physical={"g": float(g), "g_px": float(g * ppm), "restitution": e, "bounces": bounces,
+                            "release_frame": int(np.ceil(rest_before / dt)),
+                            "bounce_s": [rest_before + tb for tb in times[:-1]], "h0": drop,
+                            "pixels_per_metre": float(ppm), "scale": _scale_truth(ma, mb, gap)},
+                  state=np.stack([y, v], axis=1), state_names=("y", "y'"))
+
+
 @dataclass(frozen=True)
 class SceneInfo:
     """One scene of the dataset: what it varies, how it is drawn, the equation it obeys."""
@@ -735,6 +925,15 @@ SCENES: dict[str, SceneInfo] = {i.name: i for i in (
     SceneInfo("throw", "g", (1.62, 9.80665, 24.79), "m/s^2",  # the Moon, the Earth, Jupiter
               "a small ball thrown across the view (film it at 240 fps)", None,
               ("flight", "range", "radius", "rest_before", "rest_after"), THROW_EQUATION, "throw", _throw),
+    SceneInfo("held_pendulum", "L", (0.45, 0.7, 1.2), "m",
+              "a dark pendulum a hand holds at its starting angle, lets go and draws back", 10.0,
+              ("zeta", "theta0_deg", "hold"), PENDULUM_EQUATION, "pendulum", _held_pendulum),
+    SceneInfo("bumper_cart", "a", (0.3, 0.6, 1.2), "m/s^2",
+              "a cart let go on an incline, bouncing off the bumper at its foot", None,
+              ("restitution", "bounces", "x0", "rest_before"), "x'' = -a", "incline_cart", _bumper_cart),
+    SceneInfo("bouncing_ball", "g", (1.62, 9.80665, 24.79), "m/s^2",
+              "a ball held, dropped and bouncing on the floor", None,
+              ("restitution", "bounces", "h0", "rest_before"), THROW_EQUATION, "throw", _bouncing_ball),
 )}
 
 
