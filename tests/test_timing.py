@@ -230,3 +230,17 @@ def test_a_linear_lamp_is_read_as_linear_and_an_untold_curve_is_not_trusted(tmp_
     # does not decode to light): both within 5% of the lamp's rate (before: -6.6% and -6.3%)
     for fitted in (linear, srgb):
         assert fitted.parameters["gamma"].value == pytest.approx(0.92, rel=0.05)
+
+
+def test_a_bounce_between_two_frames_is_no_repeat_but_a_repeat_in_flight_is():
+    # a dot bouncing off a wall halfway between frames 52 and 53: the two frames are alike because
+    # it came back (a turning point), not because one repeats the other; a frame repeated in flight is
+    pos = 3 + 0.8 * np.abs(np.maximum(np.arange(100), 20) - 52.5)  # held still for the first 20 frames
+    xx, yy = np.meshgrid(np.arange(64), np.arange(16))
+    f = np.exp(-((xx[None] - pos[:, None, None]) ** 2 + (yy[None] - 8) ** 2) / 4.0)
+    f = f + np.random.default_rng(0).normal(0, 0.01, f.shape)
+    frames = (np.round(np.clip(f, 0, 1) * 255) / 255).astype(np.float32)[:, None]
+    assert np.abs(frames[53] - frames[52]).max() < 0.1  # alike
+    assert not repeated_frames(frames).any()
+    repeated = np.concatenate([frames[:80], frames[79:80], frames[80:]])
+    assert np.flatnonzero(repeated_frames(repeated)).tolist() == [80]

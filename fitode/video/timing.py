@@ -40,6 +40,7 @@ SLOT_SLACK = 0.45       # ... and up to this far, each still belongs to one poin
 CONVERSION_SLACK = 0.5  # after a rate conversion, stamps may sit up to half an interval off the capture
 CONVERSION_REPEATS = 3  # fewer repeats than this are no rate conversion (a still pair at a turning point
 #                         looks like one): their times are kept and the rest resampled where irregular
+TURN_SPAN = 3           # frames over which the motion into and out of a still pair is read (_turns)
 SLOW_MOTION = (2, 4, 8, 16)  # factors a phone or camera records slow motion at (60/120/240/480 played at 30)
 
 
@@ -70,8 +71,8 @@ def repeated_frames(frames: np.ndarray) -> np.ndarray:
     A repeat differs from the frame before by far less than the neighbouring pairs do (codec
     noise only, against motion plus the sensor's noise), where those stand clearly above the
     clip's noise floor (the lower decile of all differences), and the pairs just before and
-    after it move as much as the others: at a swing's turning point two frames taken either side
-    of the turn also look alike, but there the neighbouring pairs slow down too. Where the
+    after it move as much as the others, the same way (_turns): at a swing's turning point or a
+    bounce two frames taken either side of the turn also look alike, but the thing came back. Where the
     repeats come at a fixed period (a rate conversion: every fifth frame from 24 to 30 fps), every
     frame at that period whose difference sits at the noise floor is one (turning points
     included), and no other (where nothing moves a repeat carries nothing, so dropping it costs nothing)."""
@@ -86,7 +87,8 @@ def repeated_frames(frames: np.ndarray) -> np.ndarray:
         typical[i] = float(np.median(np.delete(d[lo:hi], i - lo)))
     for i in range(1, len(d) - 1):
         moving = typical[i] > MOVING * floor and typical[i] > MIN_CHANGE
-        if moving and d[i] < REPEAT_SHARE * typical[i] and min(d[i - 1], d[i + 1]) >= 0.5 * typical[i]:
+        if moving and d[i] < REPEAT_SHARE * typical[i] and min(d[i - 1], d[i + 1]) >= 0.5 * typical[i] \
+                and not _turns(frames, i + 1):
             out[i + 1] = True
     idx = np.flatnonzero(out)
     if len(idx) >= CONVERSION_REPEATS:
@@ -100,6 +102,40 @@ def repeated_frames(frames: np.ndarray) -> np.ndarray:
                 if d[j - 1] < REPEAT_SHARE * typical[j - 1] or d[j - 1] <= 2 * floor:
                     out[j] = True
     return out
+
+
+def _turns(frames: np.ndarray, j: int) -> bool:
+    """Does the motion turn round between frames j - 1 and j (a swing's turning point, a bounce)?
+    Then the two look alike because the thing came back, not because one repeats the other: the
+    motion into frame j - 1 and out of frame j go opposite ways, where a repeat inside a motion
+    leaves both going the same way. Each is read over TURN_SPAN frames apart from the pair (to
+    j - 2, from j + 1), as the way from where the change darkens to where it brightens (_way)."""
+    if j < 2 + TURN_SPAN or j + 1 + TURN_SPAN >= len(frames):
+        return False
+    into = _way(np.asarray(frames[j - 2], np.float32) - np.asarray(frames[j - 2 - TURN_SPAN], np.float32))
+    out = _way(np.asarray(frames[j + 1 + TURN_SPAN], np.float32) - np.asarray(frames[j + 1], np.float32))
+    return into is not None and out is not None and float(into @ out) < 0.0
+
+
+def _way(change: np.ndarray) -> np.ndarray | None:
+    """The image vector (row, column) from the centroid of where a change darkens to where it
+    brightens, on the pixels that change most (a moving thing's two edges); None where one is missing."""
+    c = np.squeeze(change)
+    if c.ndim == 3:  # colour, channels first or last: the smallest axis
+        c = c.mean(axis=int(np.argmin(c.shape)))
+    if c.ndim != 2:
+        return None
+    level = 0.3 * float(np.abs(c).max())
+    if not level > 0:
+        return None
+    rows, cols = np.indices(c.shape)
+    ends = []
+    for part in (np.where(c > level, c, 0.0), np.where(c < -level, -c, 0.0)):
+        total = float(part.sum())
+        if total <= 0:
+            return None
+        ends.append(np.array([float((part * rows).sum()), float((part * cols).sum())]) / total)
+    return ends[0] - ends[1]
 
 
 def uniform_fit(stamps: np.ndarray) -> tuple[float, float, float]:
