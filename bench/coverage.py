@@ -15,6 +15,10 @@ state at two frames where the constant depends on the latent's units). The cases
 | led             | realistic scene, sRGB light                 | gamma, noise, size, length               |
 | led-linear      | realistic scene, the light stored linear    | gamma, noise, size, length               |
 | spring          | realistic scene, a ball crossing behind it  | w2, c, noise, size, length               |
+| held-pendulum   | held_pendulum: a hand holds, lets go         | L, angle, hold, tremor, noise, size      |
+| cart            | bumper_cart, calibrated: 3-5 bounces        | a, restitution, bounces, noise, size     |
+| bounce          | bouncing_ball, calibrated: 2-4 bounces      | g, restitution, bounces, noise, size     |
+| block-rest      | sliding_block at 240 fps, rests each end    | alpha, rests, noise, size                |
 
 Per clip: the truth, the estimate, its 95% interval, its verdict. Printed: the coverage of the
 95% intervals (how often they hold the truth), the false-trust rate (TRUSTED and outside its 99%
@@ -27,6 +31,7 @@ bench says the case is missing. Not varied: the camera's angle (no generator has
 
     python bench/coverage.py                   # or: fitode bench coverage (48 clips: hours on 2 cores)
     python bench/coverage.py --clips 6         # the first 6 clips of the same fixed list
+    python bench/coverage.py --cases held-pendulum,cart,bounce,block-rest --clips 8   # clips as they are filmed
     python bench/coverage.py --quick           # smoke test: 2 tiny clips, 10 steps (numbers mean nothing)
 
 Writes <out>/coverage.json (every clip).
@@ -48,8 +53,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common as bc  # noqa: E402
 import realistic  # noqa: E402
 
-CASES = ("oscillator", "pendulum-small", "pendulum-large", "fall", "drain", "led", "led-linear", "spring")
+# clips as they are filmed (train/pieces.py): drawn from a stream of their own, after the others, so that
+# the list of the cases before them stays what it was
+PIECES_CASES = ("held-pendulum", "cart", "bounce", "block-rest")
+CASES = ("oscillator", "pendulum-small", "pendulum-large", "fall", "drain", "led", "led-linear", "spring") + PIECES_CASES
 SPRING = {"system": "spring", "quantity": "w2", "unit": "1/s^2"}
+SPECS = {"spring": SPRING, "held-pendulum": {"system": "pendulum", "quantity": "L", "unit": "m"},
+         "cart": {"system": "incline_cart", "quantity": "a", "unit": "m/s^2"},
+         "bounce": {"system": "throw", "quantity": "g", "unit": "m/s^2"}}
 PER_CASE = 8
 Z99_OVER_Z95 = 2.5758 / 1.9600
 TRUST_OFF = 0.05
@@ -73,7 +84,7 @@ def clip_list(cases: list[str], seed: int, per_case: int = PER_CASE) -> list[dic
     cases = [c for c in cases if c not in missing_cases()]
     out = []
     for i in range(per_case):
-        for case in cases:
+        for case in [c for c in cases if c not in PIECES_CASES]:
             size = SIZES[int(rng.integers(len(SIZES)))]
             noise = float(rng.uniform(0.5, 2.0))
             task: dict[str, Any] = {"case": case, "seed": seed * 1000 + len(out), "train": {}, "keep": None,
@@ -90,7 +101,31 @@ def clip_list(cases: list[str], seed: int, per_case: int = PER_CASE) -> list[dic
                 if case == "spring":
                     task["spec"] = SPRING
             out.append(task)
+    rng = np.random.default_rng([seed, 32])
+    for i in range(per_case):
+        for j, case in enumerate(c for c in cases if c in PIECES_CASES):
+            size = SIZES[int(rng.integers(len(SIZES)))]
+            scene, kwargs = _pieces_case(case, rng)
+            task = {"case": case, "seed": seed * 1000 + 500 + len(PIECES_CASES) * i + j, "train": {}, "keep": None,
+                    "calibrate": True, "scene": scene, "setting": kwargs.pop("setting"),
+                    "scene_kwargs": {**kwargs, "size": size, "noise": float(rng.uniform(0.5, 2.0))}}
+            if case in SPECS:
+                task["spec"] = SPECS[case]
+            out.append(task)
     return out
+
+
+def _pieces_case(case: str, rng) -> tuple[str, dict[str, Any]]:
+    if case == "held-pendulum":
+        return "held_pendulum", {"setting": float(rng.uniform(0.3, 1.5)), "theta0_deg": float(rng.uniform(35, 60)),
+                                 "hold": float(rng.uniform(0.8, 2.0)), "duration": float(rng.uniform(5.0, 8.0))}
+    if case == "cart":
+        return "bumper_cart", {"setting": float(rng.uniform(0.2, 1.2)), "bounces": int(rng.integers(3, 6))}
+    if case == "bounce":
+        return "bouncing_ball", {"setting": float(rng.uniform(5.0, 20.0)), "bounces": int(rng.integers(2, 5))}
+    # a block that rests, slides and stops, filmed at 240 fps
+    return "sliding_block", {"setting": float(rng.uniform(20.0, 35.0)), "rest_before": float(rng.uniform(0.2, 0.5)),
+                             "rest_after": float(rng.uniform(0.2, 0.5)), "fps": 240.0}
 
 
 def missing_cases() -> list[str]:

@@ -85,9 +85,11 @@ _TRAINING_HELP = {
     "device": (None, "where to train"),
     "seed": ("N", "random seed"),
     "threads": ("N", "torch threads for the fit"),
+    "pieces": (None, "auto: fit every stretch where one trajectory holds (between a release, bounces, a stop), "
+                     "the constants shared; one: only the longest stretch"),
 }
 TRAINING_FLAGS = ("restarts", "max_steps", "min_steps", "window", "integrator", "encoder", "light", "device", "seed",
-                  "threads")
+                  "threads", "pieces")
 
 
 def add_training_arguments(parser: argparse.ArgumentParser, *, title: str = "training",
@@ -100,7 +102,7 @@ def add_training_arguments(parser: argparse.ArgumentParser, *, title: str = "tra
     from fitode.train import config as cfg
 
     names = {"integrator": cfg.INTEGRATOR_NAMES, "encoder": cfg.ENCODER_CHOICES, "device": cfg.DEVICE_NAMES,
-             "light": cfg.LIGHT_CHOICES}
+             "light": cfg.LIGHT_CHOICES, "pieces": cfg.PIECES_CHOICES}
     defaults = cfg.defaults()
     group = parser.add_argument_group(title)
     for name in fields:

@@ -284,6 +284,10 @@ def plot_track(path: Path, result, clip, video, t0: float) -> Path:
     n = int(clip.frames.shape[0])
     stretch = result.meta.get("stretch")
     lo, hi = (int(stretch["start_frame"]), int(stretch["end_frame"])) if stretch else (0, n)
+    pieces = result.meta.get("pieces") or {}
+    if pieces.get("pieces"):  # every piece, and the hold before them
+        held = any(e["kind"] in ("hold", "moved") for e in pieces.get("events", ()))
+        lo, hi = (0 if held else int(pieces["pieces"][0][0])), int(pieces["pieces"][-1][1])
     lo, hi = max(0, min(lo, n - 1)), max(1, min(hi, n))
     idx = sorted({int(i) for i in np.linspace(lo, hi - 1, min(STILLS, hi - lo)).round()})
     source = [int(clip.frame_indices[i]) for i in idx]
@@ -307,7 +311,7 @@ def plot_track(path: Path, result, clip, video, t0: float) -> Path:
     return plots.plot_track(path, m, stills, np.asarray(result.time) + t0,
                             readings=readings(m, result.latent, result.rollout, result.states),
                             stretch=stretch, train_frames=result.train_frames,
-                            calibrated={s: (v["a"], v["b"]) for s, v in maps.items()})
+                            calibrated={s: (v["a"], v["b"]) for s, v in maps.items()}, pieces=pieces or None)
 
 
 def _slow_motion_hint(result, clip) -> list[str]:

@@ -330,7 +330,8 @@ NO_PLACE = {
 
 def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: Mapping[int, tuple[np.ndarray, Sequence[float]]],
                time: Sequence[float], *, readings: Sequence[Any] = (), stretch: Mapping[str, Any] | None = None,
-               train_frames: int | None = None, calibrated: Mapping[str, tuple[float, float]] | None = None) -> Path:
+               train_frames: int | None = None, calibrated: Mapping[str, tuple[float, float]] | None = None,
+               pieces: Mapping[str, Any] | None = None) -> Path:
     """Sample frames with what was measured drawn on them, and each measured reading over time.
 
     measurement: the record of result.json's "measurement" (source pixels); stills: {frame of the
@@ -338,7 +339,8 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
     time of every frame of the clip; readings: fitode.measurement.readings (measured and fitted
     reading per state); stretch: the stretch record (frames of the clip, end exclusive), shaded;
     calibrated: {state: (A, B)}, the calibration's state = A * latent + B, for a second axis in the
-    calibrated units where a reading is affine in the latent.
+    calibrated units where a reading is affine in the latent; pieces: the pieces record
+    (meta["pieces"], fitode.train.pieces: frames of the clip), each piece shaded and each event marked.
     """
     plt = _plt()
     m = dict(measurement or {})
@@ -396,7 +398,8 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
             ax.plot(t[mended], reading.measured[mended], "x", color="0.6", ms=5, label="off the path (not fitted)")
         ok = np.isfinite(reading.fitted)
         ax.plot(t[ok], reading.fitted[ok], "-", lw=1.3, color="tab:orange", label="the equation's fitted trajectory")
-        _shade_stretch(ax, t, stretch, train_frames)
+        _shade_stretch(ax, t, stretch if not pieces else None, train_frames)
+        _mark_pieces(ax, t, pieces)
         for i in idx:
             ax.axvline(t[i], color="0.5", lw=0.6, ls=":")
         lo, hi = _limits(kept, reading.fitted[ok])
@@ -456,6 +459,32 @@ def _shade_stretch(ax, t: np.ndarray, stretch: Mapping[str, Any] | None, train_f
                        label=f"the stretch fitted ({stretch.get('source', 'found')})")
     if train_frames is not None and 0 < train_frames < len(t):
         ax.axvspan(t[train_frames], t[-1], color="0.85", zorder=0, label="not trained on")
+
+
+EVENT_COLOURS = {"hold": "tab:purple", "moved": "tab:purple", "release": "tab:green", "bounce": "tab:red",
+                 "stop": "0.3", "lost": "0.3"}
+
+
+def _mark_pieces(ax, t: np.ndarray, pieces: Mapping[str, Any] | None) -> None:
+    """Each piece shaded (the constants are fitted to all of them together) and each event a line."""
+    if not pieces or not pieces.get("pieces"):
+        return
+    n = len(t)
+    for k, (a, b) in enumerate(pieces["pieces"]):
+        a, b = max(int(a), 0), min(int(b), n) - 1
+        if a <= b:
+            ax.axvspan(t[a], t[b], color="tab:green", alpha=0.12, zorder=0,
+                       label=f"the {len(pieces['pieces'])} pieces fitted together" if k == 0 else None)
+    seen = set()
+    for e in pieces.get("events", ()):
+        f = int(e["frame"])
+        if e["kind"] == "release" or not 0 <= f < n:
+            continue
+        label = {"hold": "held until", "moved": "moved by something else until", "bounce": "a bounce",
+                 "stop": "comes to rest", "lost": "leaves the trajectory"}.get(e["kind"], e["kind"])
+        ax.axvline(t[f], color=EVENT_COLOURS.get(e["kind"], "0.3"), lw=1.0, ls="--",
+                   label=label if e["kind"] not in seen else None)
+        seen.add(e["kind"])
 
 
 def _whole(extent: Sequence[float], m: Mapping[str, Any]) -> tuple[float, float, float, float]:

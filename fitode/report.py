@@ -269,6 +269,9 @@ def run_lines(result) -> list[str]:
     if result.meta.get("stretch"):
         lines.insert(1 if result.meta.get("subspace") else 0, stretch_line(result.meta["stretch"], len(result.time),
                                                                           result.meta.get("input", {}).get("t0", 0.0)))
+    if result.meta.get("pieces"):
+        lines.insert(2 if result.meta.get("subspace") else 1, pieces_line(result.meta["pieces"], result.dt,
+                                                                          result.meta.get("input", {}).get("t0", 0.0)))
     steps = result.checks.get("integrator") or {}
     if int(steps.get("substeps", 1)) > 1 or not steps.get("settled", True):
         lines.insert(len(lines) - len(result.runs), f"integrator: {steps['reason']}")
@@ -287,6 +290,19 @@ def stretch_line(stretch: Mapping[str, Any], n_frames: int, t0: float = 0.0) -> 
     where = (f"stretch: frames {a}-{b - 1} ({t0 + stretch['start_s']:.3f} s to {t0 + stretch['end_s']:.3f} s of "
              f"the clip), {stretch['source']}: {stretch['reason']}")
     return where + (f"; cut {cut}" if cut else "; nothing cut")
+
+
+def pieces_line(pieces: Mapping[str, Any], dt: float, t0: float = 0.0) -> str:
+    """The pieces found (contract: meta["pieces"], fitode.train.pieces) and their events, and the
+    shared fit, in one line."""
+    from fitode.train.pieces import Pieces
+
+    line = "pieces: " + Pieces.from_dict(pieces).describe(dt, t0, pieces.get("n_frames"))
+    joint = pieces.get("joint")
+    if joint:
+        line += "; the constants fitted to all " + str(len(pieces["pieces"])) + " together: " + ", ".join(
+            f"{n} {v:.5g} +- {joint['errors'][n]:.2g}" for n, v in joint["values"].items())
+    return line
 
 
 def format_table(report: Mapping[str, Any]) -> str:

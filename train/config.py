@@ -21,6 +21,7 @@ ENCODER_CHOICES = ("auto",) + ENCODER_NAMES  # auto: linear where a free encoder
 OBSERVE_CHOICES = CHOICES
 # how the brightness observation reads pixel values (train/observe/light.py); auto: the curve that makes the change one pattern
 LIGHT_CHOICES = ("auto", "srgb", "linear")
+PIECES_CHOICES = ("auto", "one")  # every stretch one trajectory explains, or the single one
 INTEGRATOR_NAMES = ("rk4", "symplectic", "euler")
 INTEGRATOR_ALIASES = {"paper": "symplectic", "semi-implicit": "symplectic", "semi_implicit": "symplectic",
                       "explicit-euler": "euler"}
@@ -54,6 +55,8 @@ class TrainConfig:
     check_every: steps between checks that the loss and constants are finite (each check is a
     host synchronisation). stretch: on a measured path, fit only the stretch that one trajectory
     of the equation explains (train/stretch.py); off where the user chose the frames (--start/--end).
+    pieces: "auto" finds every stretch one trajectory explains (a hold, a release, bounces:
+    train/pieces.py) and fits the constants to all of them together; "one" fits the single stretch.
     """
 
     window: int | None = None
@@ -81,6 +84,7 @@ class TrainConfig:
     threads: int | None = 1
     check_every: int = 10
     stretch: bool = True
+    pieces: str = "auto"
 
     def __post_init__(self) -> None:
         for name in ("max_steps", "restarts", "substeps", "patience", "check_every"):
@@ -109,6 +113,7 @@ class TrainConfig:
         self.initial_state = _choice("initial_state", self.initial_state, INITIAL_STATE_NAMES)
         self.encoder = _choice("encoder", self.encoder, ENCODER_CHOICES)
         self.light = _choice("light", self.light, LIGHT_CHOICES)
+        self.pieces = _choice("pieces", self.pieces, PIECES_CHOICES)
         device = str(self.device)
         if device.split(":")[0] not in DEVICE_NAMES:
             raise ConfigError(f"unknown device {self.device!r}; use cpu or cuda")

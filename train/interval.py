@@ -44,7 +44,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -224,7 +224,8 @@ class _Batch:
     Gauss-Newton step for all draws is one rollout (a refit one by one with L-BFGS took 8 s for
     300 frames here; 64 draws at once take about as long as one)."""
 
-    def __init__(self, system, params: Mapping, x: np.ndarray, dt: float, integrator: str, substeps: int):
+    def __init__(self, system, params: Mapping, x: np.ndarray, dt: float, integrator: str, substeps: int,
+                 pieces: Sequence[int] | None = None):
         import torch
 
         from fitode.codegen import PhysicsBlock
@@ -234,32 +235,44 @@ class _Batch:
         self.names = list(system.learnable)
         probe = PhysicsBlock(system, params, integrator=integrator, substeps=substeps, dtype=torch.float64)
         self.nc, self.T, self.k = probe.n_context, x.shape[0], x.shape[1]
+        # pieces: x is the frames of several trajectories one after another (train/pieces.py), each
+        # with starting frames of its own and the constants shared; their lengths, summing to T
+        self.lengths = [int(n) for n in pieces] if pieces else [self.T]
+        if sum(self.lengths) != self.T or min(self.lengths) < self.nc + 1:
+            raise ValueError("the pieces' lengths must cover the path, each longer than the context")
+        self.firsts = np.concatenate([[0], np.cumsum(self.lengths)[:-1]]).astype(int)
         self.m = len(self.names)
-        self.p = self.m + self.nc * self.k
+        self.p = self.m + len(self.lengths) * self.nc * self.k
         self.weight = 1.0 / np.maximum(x.std(axis=0), 1e-24)  # every state counts equally, as fit_trajectory's
 
+    def starts(self, x: np.ndarray) -> np.ndarray:
+        """The starting frames of every piece of x (T, k), flat, as theta carries them."""
+        return np.concatenate([x[f:f + self.nc].reshape(-1) for f in self.firsts])
+
     def roll(self, theta: np.ndarray, dt: float | None = None, frames: int | None = None) -> np.ndarray:
-        """(N, T, k) trajectories for theta (N, p) = constants then starting frames; NaN where a
-        rollout leaves the equation's domain."""
+        """(N, T, k) trajectories for theta (N, p) = constants then starting frames (each piece's);
+        NaN where a rollout leaves the equation's domain. frames: a longer rollout (one piece only)."""
         import torch
 
         from fitode.codegen import PhysicsBlock
 
-        n = len(theta)
+        n, P = len(theta), len(self.lengths)
         block = PhysicsBlock(self.system, self.params, integrator=self.integrator, substeps=self.substeps,
                              dtype=torch.float64, restarts=n, check_finite=False)
         block.set_constants({name: theta[:, i].tolist() for i, name in enumerate(self.names)}, clip=True)
-        head = torch.as_tensor(theta[:, self.m:].reshape(n, 1, self.nc, self.k))
+        head = torch.as_tensor(theta[:, self.m:].reshape(n, P, self.nc, self.k))
         with torch.no_grad():
-            out = block(head, frames or self.T, self.dt if dt is None else dt)[:, 0]
-        return out.numpy()
+            out = block(head, frames or max(self.lengths), self.dt if dt is None else dt).numpy()
+        if P == 1:
+            return out[:, 0] if frames else out[:, 0, :self.T]
+        return np.concatenate([out[:, j, :length] for j, length in enumerate(self.lengths)], axis=1)
 
     def steps(self, theta: np.ndarray) -> np.ndarray:
         """Finite-difference steps (N, p): relative for the constants, a millionth of each
         state's spread for the starting frames."""
         h = np.empty_like(theta)
         h[:, : self.m] = 1e-6 * np.maximum(np.abs(theta[:, : self.m]), 1e-6)
-        h[:, self.m:] = np.tile(1e-6 / self.weight, self.nc)[None, :]
+        h[:, self.m:] = np.tile(1e-6 / self.weight, self.nc * len(self.lengths))[None, :]
         return h
 
     def cost(self, theta: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -343,22 +356,24 @@ class _Batch:
 def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping[str, float], *,
               iterations: int = ITERATIONS, seed: int = 0, integrator: str = "rk4", substeps: int = 1,
               refit_iterations: int = REFIT_ITERATIONS, level: float = LEVEL,
-              learned: bool = False, moves: list[np.ndarray] | None = None) -> Bootstrap | None:
+              learned: bool = False, moves: list[np.ndarray] | None = None,
+              pieces: Sequence[int] | None = None) -> Bootstrap | None:
     """The moving-block bootstrap of the path x (T, k) about one trajectory of the equation
     fitted from `values` (see the module docstring). learned: x is a learned latent, whose
     bends are measured too (bends). moves: changes of the path (T, k), each one standard deviation
     of the measurement's geometry along an independent direction (an angle's pivot: angle.pivot_moves);
     the refits of the path so changed give each constant's share (geometry). None where the path
-    cannot be fitted as one trajectory or too few refits succeed."""
+    cannot be fitted as one trajectory or too few refits succeed. pieces: x is several trajectories
+    one after another, these many frames each, with the constants shared (train/pieces.py)."""
     began = time.perf_counter()
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     if not np.all(np.isfinite(x)):
         return None
     try:
-        batch = _Batch(system, params, x, dt, integrator, substeps)
+        batch = _Batch(system, params, x, dt, integrator, substeps, pieces)
         if batch.T < batch.nc + 2 * batch.p:
             return None
-        theta0 = np.concatenate([[float(values[n]) for n in batch.names], x[: batch.nc].reshape(-1)])[None]
+        theta0 = np.concatenate([[float(values[n]) for n in batch.names], batch.starts(x)])[None]
         centre = batch.gauss_newton(theta0, x[None], CENTRE_ITERATIONS)
         if not np.all(np.isfinite(centre)):
             return None
@@ -373,7 +388,7 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
             return None
         stretched = batch.gauss_newton(centre, batch.roll(centre, dt * (1 + TIME_STEP)), refit_iterations)
         scaled = batch.chord(centre, fitted[None] * (1 + SCALE_STEP), refit_iterations)
-        held_out = _held_out(system, params, x, dt, centre, integrator, substeps)
+        held_out = _held_out(system, params, x, dt, centre, integrator, substeps) if len(batch.lengths) == 1 else None
         bend = bends(batch, centre, fitted, refit_iterations) if learned else {}
         moved = batch.chord(centre, fitted[None] + np.stack(moves), refit_iterations) if moves else None
     except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError, FitodeError):
@@ -485,10 +500,14 @@ def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
     x = _path(result, best)
     settings = result.settings
     learned = not result.meta.get("measured")
-    frames = (result.meta.get("trajectory") or {}).get("frames") if isinstance(result.meta.get("trajectory"), Mapping) else None
-    moves = pivot_moves(x, result.meta.get("measurement"), tuple(frames)) if frames and x.shape[1] == 1 else []
+    recorded = result.meta.get("trajectory") if isinstance(result.meta.get("trajectory"), Mapping) else {}
+    frames, pieces = recorded.get("frames"), recorded.get("pieces")
+    # an angle's pivot moved: the path of one stretch read again (the pieces' frames are not one span)
+    moves = pivot_moves(x, result.meta.get("measurement"), tuple(frames)) \
+        if frames and not pieces and x.shape[1] == 1 else []
     boot = bootstrap(system, params, x, result.dt, best.final, seed=seed, learned=learned, moves=moves,
-                     integrator=str(settings.get("integrator", "rk4")), substeps=int(settings.get("substeps", 1)))
+                     integrator=str(settings.get("integrator", "rk4")), substeps=int(settings.get("substeps", 1)),
+                     pieces=pieces)
     out: dict[str, Interval] = {}
     own = set(result.meta.get("own_units", ()))
     # an angle's pivot moved by its uncertainty carries its scale too: the scale share is for what has no moves

@@ -78,7 +78,11 @@ def at_rest(x: np.ndarray, dt: float, noise: float) -> np.ndarray:
     rest = np.zeros(T, dtype=bool)
     if T < w:
         return rest
-    span = np.stack([np.ptp(x[i:i + w], axis=0).max() for i in range(T - w + 1)])
+    # the span without the window's most extreme frame each way: a tracker's one-frame glitch
+    # (a centroid off by a pixel) is not motion
+    ordered = np.sort(np.lib.stride_tricks.sliding_window_view(x, w, axis=0), axis=-1)
+    cut = 1 if w >= 6 else 0
+    span = (ordered[..., w - 1 - cut] - ordered[..., cut]).max(axis=1)
     still = span <= REST_SIGMAS * noise
     for i in np.flatnonzero(still):
         rest[i:i + w] = True
@@ -92,17 +96,19 @@ def at_rest(x: np.ndarray, dt: float, noise: float) -> np.ndarray:
 
 
 def find_stretch(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray | None], *,
-                 min_len: int = MIN_SEED) -> Stretch:
+                 min_len: int = MIN_SEED, search: bool = False) -> Stretch:
     """The longest stretch [start, end) of the path x (T, k) that one trajectory explains.
     fit(a, b): the residual (b - a, k) of one trajectory fitted to frames [a, b), in x's units,
-    or None where it cannot be fitted (fit may warm-start from its previous call)."""
+    or None where it cannot be fitted (fit may warm-start from its previous call). search: look
+    inside a path that never rests too (a hand that holds a pendulum is never quite still): the
+    whole is kept where one trajectory misses it by less than a break (train/pieces.py)."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     T = len(x)
     rest = at_rest(x, dt, noise_level(x))
     # the noise of a moving thing is not that of a still one (a blob on the pixel grid, motion blur):
     # the tolerance comes from the moving frames, where there are enough of them
     noise = noise_level(x[~rest]) if int((~rest).sum()) >= 8 else noise_level(x)
-    if not rest.any():
+    if not rest.any() and not search:
         # it never rests: the clip is the motion. Searching it cut a clean path of two oscillators
         # (8 s) to its last 1.25 s (a 4.27 for 4.0): the search's short fits, their learned scale
         # held at the windows', miss a long path they would fit from a better start

@@ -34,7 +34,9 @@ from .selection import select_runs, selection
 from .starts import CANDIDATES, data_starts
 from .direct import full_fit, fit_path, fitted_path, orientation, screen
 from .steps import settle_substeps
-from .stretch import MIN_SEED, find_stretch
+from .joint import disagreement, fit_pieces
+from .pieces import Pieces, find_pieces
+from .stretch import MIN_SEED, Stretch, find_stretch
 from .trajectory import SEGMENT, fit_trajectory, long_options
 from .findings import Finding
 from .latent_checks import video_checks
@@ -158,6 +160,7 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
     if mended:
         findings.append(Finding("ambiguous", mended))
     findings.extend(other_findings)
+    findings.extend(Finding.from_dict(f) for f in (extra_meta.get("pieces") or {}).get("findings", ()))
     if observation.applies("trajectory") and not interrupted:
         holds, numbers["whole_clip"] = whole_clip_check(system, params, states[best, span], dt,
                                                         records[best].final, config)
@@ -265,8 +268,9 @@ def _measured_fit(prepared, plan: FitPlan, gauges, stretch: tuple[int, int] | No
                                   integrator=config.integrator, substeps=config.substeps)
     T, k = latent.shape
     options = {"integrator": config.integrator, "substeps": config.substeps}
+    pieces = None
     if stretch is None:
-        stretch, record = _stretch(latent, plan, gauges)
+        stretch, record, pieces = _stretch(latent, plan, gauges)
     else:
         record = None
     first, last = stretch
@@ -306,6 +310,8 @@ def _measured_fit(prepared, plan: FitPlan, gauges, stretch: tuple[int, int] | No
             if reread is not None:
                 fit, _, straight, prepared, meta = _measured_fit(reread, plan, gauges, stretch)
                 meta["stretch"] = record or meta["stretch"]
+                if pieces is not None:
+                    _joint(fit, pieces, plan, meta)
                 return fit, perspective, straight, prepared, meta
     record = record or _stretch_record(stretch, plan, "as asked", "the frames asked for")
     gauge = records[best].gauge
@@ -319,14 +325,51 @@ def _measured_fit(prepared, plan: FitPlan, gauges, stretch: tuple[int, int] | No
                            "mode": "segments" if last - first > 2 * SEGMENT else "whole", "frames": [first, last],
                            "misfit": straight.misfit, "values": straight.values, "errors": straight.errors,
                            "gauge": straight.gauge, "noise": record.get("noise")}}
+    if pieces is not None:
+        _joint(fit, pieces, plan, meta)
     return fit, perspective, straight, prepared, meta
 
 
-def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int], dict | None]:
-    """The stretch of the training frames the fit uses and its record (contract: meta["stretch"])."""
+def _joint(fit, pieces, plan: FitPlan, meta: dict) -> None:
+    """Where the path has several pieces (train/pieces.py), the constants they share, fitted to all
+    of them together (train/joint.py) from the best run's: every run reports them, and the path the
+    interval resamples is the pieces' (meta["trajectory"]: measured, fitted, pieces); the pieces and
+    their events in meta["pieces"], with what each piece alone gives."""
+    system, config = plan.system, plan.config
+    meta["pieces"] = pieces.to_dict(plan.dt, n_frames=plan.n_train)
+    if len(pieces.spans) < 2:
+        return
+    best = fit.records[fit.best]
+    with _threads(config.threads):
+        joint = fit_pieces(system, plan.params, fit.states[fit.best], plan.dt, pieces.spans, best.final,
+                           integrator=config.integrator, substeps=config.substeps)
+    if joint is None:
+        meta["pieces"]["joint"] = None
+        return
+    for r in fit.records:
+        r.final = {**r.final, **joint.values}
+        r.aligned = {}
+    # every piece's trajectory drawn and kept, in the latent's units (the state is s * latent + b)
+    scale = np.array([best.gauge.get(st, {}).get("scale", 1.0) for st in system.states])
+    offset = np.array([best.gauge.get(st, {}).get("offset", 0.0) for st in system.states])
+    done = 0
+    for a, b in pieces.spans:
+        fit.rollouts[:, a:b] = (joint.fitted[done:done + b - a] - offset) / scale
+        done += b - a
+    meta["pieces"]["joint"] = joint.to_dict()
+    meta["pieces"]["findings"] = [f.to_dict() for f in disagreement(joint, pieces.spans, plan.dt)]
+    meta["trajectory"].update(
+        measured=np.concatenate([fit.states[fit.best, a:b] for a, b in pieces.spans]).tolist(),
+        fitted=joint.fitted.tolist(), pieces=[b - a for a, b in pieces.spans], misfit=joint.misfit,
+        values=joint.values, errors=joint.errors, frames=[pieces.spans[0][0], pieces.spans[-1][1]])
+
+
+def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int], dict | None, Pieces | None]:
+    """The stretch of the training frames the runs fit and its record (contract: meta["stretch"]);
+    with pieces, the pieces (train/pieces.py) and the stretch is the longest of them."""
     n = plan.n_train
     if not plan.config.stretch or n < 3 * MIN_SEED:
-        return (0, n), None
+        return (0, n), None, None
     system, params, config = plan.system, plan.params, plan.config
     warm = dict(restart_inits(system, params, 1, config.seed, plan.init)[0])
     with _threads(config.threads):
@@ -346,13 +389,30 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int]
         # every fit starts from the same place: a short seed's constants (a decay's level, barely
         # determined over a few frames) sent the next fit of the whole clip into a far basin
         return None if got is None else got.residuals
+    pieces = None
     with _threads(config.threads):
-        found = find_stretch(latent[:n], plan.dt, fit)
+        if config.pieces == "one":
+            found = find_stretch(latent[:n], plan.dt, fit)
+        else:
+            pieces = find_pieces(latent[:n], plan.dt, fit)
+            found = _longest(latent[:n], pieces, plan.dt) if pieces.spans else find_stretch(latent[:n], plan.dt, fit)
+            if not pieces.spans:
+                pieces = None
     record = found.to_dict(plan.dt)
     record["noise"] = found.noise
     if found.start == 0 and found.end == n:
         record["reason"] = "one trajectory of the equation explains the whole clip"
-    return (found.start, found.end), record
+    return (found.start, found.end), record, pieces
+
+
+def _longest(x: np.ndarray, pieces: Pieces, dt: float) -> Stretch:
+    """The piece that travels farthest, as a stretch (the runs are fitted on it first)."""
+    a, b = max(pieces.spans, key=lambda s: float(np.ptp(x[s[0]:s[1]], axis=0).max()))
+    kinds = {e.kind: e.frame for e in pieces.events}
+    why_start = ("from the clip's first frame" if a == 0 else
+                 f"released at {a * dt:.3g} s" if kinds.get("release") == a else f"a piece from {a * dt:.3g} s")
+    why_end = "to the clip's last frame" if b >= len(x) else f"a piece to {b * dt:.3g} s"
+    return Stretch(a, b, why_start, why_end, pieces.noise)
 
 
 def _stretch_record(stretch: tuple[int, int], plan: FitPlan, source: str, reason: str) -> dict:

@@ -741,8 +741,14 @@ def _held_pendulum(L, rng, duration, dt, h, w, p) -> _Scene:
     swing, names, state, snames = simulate_system(pendulum_system(), {"L": L, "zeta": zeta},
                                                   {"theta": theta0, "theta'": 0.0}, max(n - held, 2), dt,
                                                   substeps=20)
-    theta = np.concatenate([np.full(held, theta0), swing[:, 0]])[:n]
-    omega = np.concatenate([np.zeros(held), state[:, 1]])[:n]
+    # a hand is never quite still: a slow wander of up to tremor_deg, gone (with its speed) at the release
+    tremor = np.deg2rad(float(p.get("tremor_deg", rng.uniform(0.3, 1.0))))
+    tt = np.arange(held) * dt
+    taper = ((held * dt - tt) / max(held * dt, 1e-9)) ** 2
+    f1, f2, ph = rng.uniform(0.4, 0.9), rng.uniform(1.2, 2.5), rng.uniform(0, 2 * np.pi, 2)
+    wander = tremor * taper * (0.7 * np.sin(2 * np.pi * f1 * tt + ph[0]) + 0.3 * np.sin(2 * np.pi * f2 * tt + ph[1]))
+    theta = np.concatenate([theta0 + wander, swing[:, 0]])[:n]
+    omega = np.concatenate([np.gradient(wander, dt) if held > 1 else np.zeros(held), state[:, 1]])[:n]
     side = float(rng.choice([-1.0, 1.0]))
     theta, omega = side * theta, side * omega
     bob_m = 0.03
@@ -771,8 +777,8 @@ def _held_pendulum(L, rng, duration, dt, h, w, p) -> _Scene:
                 (bx - rb, by - rb, bx + rb, by + rb))
         # the hand pinches the ball from outside and below, then draws back out of the view
         out = np.array([side * 0.8, 0.6])
-        hx, hy = np.array([px + L * ppm * np.sin(side * theta0), py + L * ppm * np.cos(side * theta0)]) \
-            + out * (0.95 * size + rb)
+        hx, hy = np.array([px + L * ppm * np.sin(theta[min(i, held - 1)] if held else 0.0),
+                           py + L * ppm * np.cos(theta[min(i, held - 1)] if held else 0.0)]) + out * (0.95 * size + rb)
         away = max(0.0, (i - held) * dt)
         hx, hy = hx + out[0] * speed * away, hy + out[1] * speed * away
         r = 2 * size
@@ -804,7 +810,7 @@ def _bumper_cart(a, rng, duration, dt, h, w, p) -> _Scene:
     t = np.arange(n) * dt - rest_before
     x, v, _ = _flights(x0, 0.0, a, e, bounces, t)
     alpha = float(np.arcsin(min(a / G, 1.0)))
-    shown = max(alpha, np.deg2rad(rng.uniform(4, 8)))  # drawn a little steeper than its pull: friction
+    shown = max(alpha, np.deg2rad(rng.uniform(2.5, 5)))  # drawn a little steeper than its pull: friction
     ppm = rng.uniform(0.8, 0.9) * w / (track + 0.15)
     bx0, by0 = 0.08 * w, 0.8 * h  # the bumper, at the foot of the track on the left
     d = np.array([np.cos(shown), -np.sin(shown)])  # up the track on screen
@@ -834,7 +840,9 @@ def _bumper_cart(a, rng, duration, dt, h, w, p) -> _Scene:
     first = int(np.ceil(rest_before / dt))
     return _Scene(background=cv.image, draw=draw, latent=x[:, None], latent_names=("x",),
                   truth={"a": float(a)},
-                  physical={"a": float(a), "a_px": float(a * ppm), "restitution": e, "bounces": bounces,
+                  physical={"a": float(a), "a_px": float(a * ppm), "a_across_px": float(a * ppm * np.cos(shown)),
+                            "shown_deg": float(np.rad2deg(shown)), "x0": x0, "rest_before_s": rest_before,
+                            "restitution": e, "bounces": bounces,
                             "release_frame": first, "bounce_s": [rest_before + tb for tb in times[:-1]],
                             "alpha_deg": float(np.rad2deg(alpha)), "pixels_per_metre": float(ppm),
                             "scale": _scale_truth(ma, mb, gap)},
@@ -878,7 +886,7 @@ def _bouncing_ball(g, rng, duration, dt, h, w, p) -> _Scene:
                   truth={"g": float(g)},
                   physical={"g": float(g), "g_px": float(g * ppm), "restitution": e, "bounces": bounces,
                             "release_frame": int(np.ceil(rest_before / dt)),
-                            "bounce_s": [rest_before + tb for tb in times[:-1]], "h0": drop,
+                            "bounce_s": [rest_before + tb for tb in times[:-1]], "h0": drop, "rest_before_s": rest_before,
                             "pixels_per_metre": float(ppm), "scale": _scale_truth(ma, mb, gap)},
                   state=np.stack([y, v], axis=1), state_names=("y", "y'"))
 
@@ -927,7 +935,7 @@ SCENES: dict[str, SceneInfo] = {i.name: i for i in (
               ("flight", "range", "radius", "rest_before", "rest_after"), THROW_EQUATION, "throw", _throw),
     SceneInfo("held_pendulum", "L", (0.45, 0.7, 1.2), "m",
               "a dark pendulum a hand holds at its starting angle, lets go and draws back", 10.0,
-              ("zeta", "theta0_deg", "hold"), PENDULUM_EQUATION, "pendulum", _held_pendulum),
+              ("zeta", "theta0_deg", "hold", "tremor_deg"), PENDULUM_EQUATION, "pendulum", _held_pendulum),
     SceneInfo("bumper_cart", "a", (0.3, 0.6, 1.2), "m/s^2",
               "a cart let go on an incline, bouncing off the bumper at its foot", None,
               ("restitution", "bounces", "x0", "rest_before"), "x'' = -a", "incline_cart", _bumper_cart),

@@ -224,9 +224,9 @@ def mend_strays(xy: np.ndarray, n_fit: int | None = None) -> tuple[np.ndarray, i
 
     Each frame is compared with the parabola in time through the 2 STRAY_SPAN frames around it
     (itself left out; at the ends, the nearest such frames, its miss then scaled down by the
-    larger noise of an extrapolation), fitted per coordinate: a swing or a
-    bounce is smooth over a few frames, a centroid that jumped to something else for a frame or
-    two is not. Far means more than MEND_SIGMAS times the misses' robust spread over the first
+    larger noise of an extrapolation), fitted per coordinate: a swing is smooth over a few frames
+    and a bounce lies on a line with the frames on one side of it, a centroid that jumped to
+    something else for a frame or two does neither. Far means more than MEND_SIGMAS times the misses' robust spread over the first
     n_fit frames and more than MEND_PIXELS. A stray also pulls its neighbours' parabolas, so the
     first round takes only the frames that miss most among their neighbours, and later rounds
     check every frame against the path so mended (up to ROUNDS, until nothing changes)."""
@@ -251,12 +251,22 @@ def mend_strays(xy: np.ndarray, n_fit: int | None = None) -> tuple[np.ndarray, i
     gain = np.sqrt(1 + (filters ** 2).sum(axis=1))[place]
     mended, off, first = x, np.zeros(n, dtype=bool), None
     threshold = None
+    # a bounce is a kink, not a stray: every frame near it lies on the line through the two frames
+    # before it (and so does the frame before it), or through the two after it, where a centroid
+    # that jumped to something else for a frame or a few lies on neither (a ball's bounces were
+    # read from their neighbours)
+    left, right = np.full(n, np.inf), np.full(n, np.inf)
+    left[2:] = np.linalg.norm(x[2:] - (2 * x[1:-1] - x[:-2]), axis=1) / np.sqrt(6.0)  # a line's extrapolation
+    right[:-2] = np.linalg.norm(x[:-2] - (2 * x[1:-1] - x[2:]), axis=1) / np.sqrt(6.0)
     for _ in range(ROUNDS):
         predicted = np.einsum("tw,twk->tk", filters[place], mended[index])
         miss = np.linalg.norm(x - predicted, axis=1) / gain
         if threshold is None:
             threshold = max(MEND_SIGMAS * 1.4826 * float(np.median(miss[:n_fit])), MEND_PIXELS / gain.min())
-        far = miss > threshold
+        line = np.zeros(n, dtype=bool)
+        line[1:] |= (left[1:] <= threshold) & (left[:-1] <= threshold)
+        line[:-1] |= (right[:-1] <= threshold) & (right[1:] <= threshold)
+        far = (miss > threshold) & ~line
         if first is None:
             padded = np.concatenate([np.zeros(h), miss, np.zeros(h)])
             first = far & (miss >= np.lib.stride_tricks.sliding_window_view(padded, 2 * h + 1).max(axis=1))

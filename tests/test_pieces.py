@@ -1,0 +1,107 @@
+"""The pieces of a measured path (train/pieces.py) and one set of constants over them (train/joint.py)."""
+import numpy as np
+import pytest
+
+from fitode.eqparse import parse
+from fitode.synth.scenes import _flights
+from fitode.train.joint import disagreement, fit_pieces
+from fitode.train.pieces import Pieces, find_pieces, impacts
+
+DT = 1 / 60
+
+
+def bouncing(noise=0.05, a=150.0, e=0.8, bounces=4, hold=0.5, seconds=None, seed=0):
+    """A cart-like path in pixels: held at x0, let go, bouncing off x = 0 (x'' = -a between)."""
+    x0 = 200.0
+    times = _flights(x0, 0.0, a, e, bounces, np.zeros(1))[2]
+    n = int((hold + (seconds or times[-1] - 0.05)) / DT)
+    t = np.arange(n) * DT - hold
+    x, _, times = _flights(x0, 0.0, a, e, bounces, t)
+    return x + np.random.default_rng(seed).normal(0, noise, n), [hold + tb for tb in times[:-1]]
+
+
+def parabola_fit(x):
+    def fit(a, b):
+        if b - a < 4:
+            return None
+        t = np.arange(b - a)
+        c = np.polyfit(t, x[a:b], 2)
+        return (np.polyval(c, t) - x[a:b])[:, None]
+    return fit
+
+
+def test_impacts_are_the_bounces_and_not_a_release_or_a_swing():
+    x, bounces = bouncing()
+    found = impacts(x[:, None], 0.05, 0, len(x), DT)
+    assert len(found) == len(bounces)
+    for (a, b), tb in zip(found, bounces):
+        assert a - 1 <= tb / DT <= b + 1
+    swing = 100 * np.cos(2 * np.pi * np.arange(600) * DT / 1.7) + np.random.default_rng(1).normal(0, 0.05, 600)
+    assert impacts(swing[:, None], 0.05, 0, 600, DT) == []
+    t = np.arange(300) * DT
+    release = np.where(t < 1.0, 0.0, -0.5 * 150 * (t - 1.0) ** 2) + np.random.default_rng(2).normal(0, 0.05, 300)
+    assert impacts(release[:, None], 0.05, 0, 300, DT) == []
+
+
+def test_find_pieces_cuts_the_hold_and_every_bounce_and_says_so():
+    x, bounces = bouncing()
+    pieces = find_pieces(x[:, None], DT, parabola_fit(x))
+    assert len(pieces.spans) == len(bounces) + 1
+    kinds = [e.kind for e in pieces.events]
+    assert kinds[:2] == ["hold", "release"] and kinds.count("bounce") == len(bounces)
+    assert abs(pieces.spans[0][0] * DT - 0.5) < 0.2  # released at 0.5 s
+    for (_, b), (a, _), tb in zip(pieces.spans, pieces.spans[1:], bounces):
+        assert b * DT <= tb + DT and a * DT >= tb - DT  # no piece reaches across a bounce
+    text = pieces.describe(DT, n_frames=len(x))
+    assert text.startswith("held still until") and f"{len(bounces) + 1} flights between {len(bounces)} bounces" in text
+    again = Pieces.from_dict(pieces.to_dict(DT, len(x)))
+    assert again.spans == pieces.spans and [e.kind for e in again.events] == kinds
+
+
+def test_one_swing_is_one_piece():
+    x = 100 * np.cos(2 * np.pi * np.arange(400) * DT / 1.7) + np.random.default_rng(3).normal(0, 0.05, 400)
+
+    def fit(a, b):
+        t = np.arange(a, b) * DT * 2 * np.pi / 1.7
+        basis = np.stack([np.cos(t), np.sin(t)], axis=1)
+        coef = np.linalg.lstsq(basis, x[a:b], rcond=None)[0]
+        return (basis @ coef - x[a:b])[:, None]
+    pieces = find_pieces(x[:, None], DT, fit)
+    assert pieces.spans == [(0, 400)] and not [e for e in pieces.events if e.kind == "bounce"]
+
+
+def test_the_constants_shared_by_the_flights_are_fitted_together_and_narrower():
+    x, _ = bouncing(noise=0.2, seed=4)
+    spans = find_pieces(x[:, None], DT, parabola_fit(x)).spans
+    system = parse("x'' = -a")
+    joint = fit_pieces(system, {}, x[:, None], DT, spans, {"a": 100.0})
+    assert joint is not None and joint.values["a"] == pytest.approx(150.0, rel=0.01)
+    alone = [p["a"][1] for p in joint.alone]
+    assert joint.errors["a"] < min(alone)  # every flight adds to what one says
+    assert abs(joint.values["a"] - 150.0) < 4 * joint.errors["a"]
+    assert disagreement(joint, spans, DT) == []
+    # one flight under another pull: the pieces disagree, and the verdict hears of it
+    y = x.copy()
+    a, b = spans[1]
+    t = np.arange(b - a) * DT
+    y[a:b] = y[a] + (y[a + 1] - y[a]) / DT * t - 0.5 * 200.0 * t ** 2
+    odd = fit_pieces(system, {}, y[:, None], DT, spans, {"a": 100.0})
+    found = disagreement(odd, spans, DT)
+    assert len(found) == 1 and found[0].level == "ambiguous" and "do not share one a" in found[0].reason
+
+
+def test_the_interval_resamples_every_piece():
+    from fitode.train.interval import bootstrap
+    x, _ = bouncing(noise=0.2, e=0.95, seed=5)  # flights alike: all of them say about twice what one does
+    spans = find_pieces(x[:, None], DT, parabola_fit(x)).spans
+    joined = np.concatenate([x[a:b] for a, b in spans])[:, None]
+    system = parse("x'' = -a")
+    every = bootstrap(system, {}, joined, DT, {"a": 150.0}, pieces=[b - a for a, b in spans])
+    joint = fit_pieces(system, {}, x[:, None], DT, spans, {"a": 150.0})
+    assert every is not None and every.values["a"] == pytest.approx(150.0, rel=0.01)
+    # as wide as the pieces' shared fit says, and narrower than the best single flight's
+    assert 0.5 < every.std["a"] / joint.errors["a"] < 2.0
+    assert every.std["a"] < 0.8 * min(p["a"][1] for p in joint.alone)
+    with pytest.raises(ValueError):
+        from fitode.train.interval import _Batch
+        _Batch(system, {}, joined, DT, "rk4", 1, [len(joined) - 1])  # the pieces must cover the path

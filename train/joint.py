@@ -1,0 +1,104 @@
+"""One set of constants over every piece of a measured path (train/pieces.py).
+
+Each piece is a trajectory of the equation with a starting state of its own (a release, a bounce:
+the state jumps between pieces, so the joins are free); the constants are shared and fitted to all
+pieces together, by the interval's batched Levenberg-Marquardt (train/interval.py, _Batch with
+pieces), from the constants the longest piece gave. Their standard errors come from the Jacobian,
+widened for residuals that hang together from frame to frame, as fit_trajectory's do.
+
+The pieces are then checked against each other: each is fitted alone from the shared constants;
+one whose constant lies farther from the shared value than SIGMAS of their combined errors and
+APART of the value is a finding (a bounce that also knocks the track, a hand still touching).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .findings import Finding
+from .interval import CENTRE_ITERATIONS, _Batch
+
+SIGMAS = 3.0
+APART = 0.02
+
+
+@dataclass
+class JointFit:
+    """The shared constants of the pieces and what each piece alone says."""
+
+    values: dict[str, float]
+    errors: dict[str, float]
+    misfit: float                   # RMS residual over all pieces, in units of each state's spread
+    fitted: np.ndarray              # (T, k) the pieces' trajectories, one after another
+    alone: list[dict[str, list[float]] | None]  # per piece: name -> [value, error], None where it is too short
+
+    def to_dict(self) -> dict:
+        return {"values": self.values, "errors": self.errors, "misfit": self.misfit, "alone": self.alone}
+
+
+def fit_pieces(system, params: Mapping, x: np.ndarray, dt: float, spans: Sequence[tuple[int, int]],
+               start: Mapping[str, float], *, integrator: str = "rk4", substeps: int = 1) -> JointFit | None:
+    """The constants shared by the pieces spans [(a, b), ...] of the path x (T, k), in x's units,
+    from `start`; None where they cannot be fitted together."""
+    x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
+    parts = [x[a:b] for a, b in spans]
+    joined = np.concatenate(parts)
+    values, errors, misfit, fitted = _fit(system, params, joined, dt, [len(p) for p in parts], start,
+                                          integrator, substeps)
+    if values is None:
+        return None
+    alone = []
+    for part in parts:
+        v, e, _, _ = _fit(system, params, part, dt, [len(part)], values, integrator, substeps) \
+            if len(parts) > 1 else (values, errors, None, None)
+        alone.append(None if v is None else {n: [v[n], e[n]] for n in v})
+    return JointFit(values, errors, misfit, fitted, alone)
+
+
+def disagreement(fit: JointFit, spans: Sequence[tuple[int, int]], dt: float, offset: int = 0) -> list[Finding]:
+    """A finding for each constant on which a piece disagrees with the shared value beyond both
+    errors."""
+    out = []
+    for name, value in fit.values.items():
+        apart = []
+        for (a, b), own in zip(spans, fit.alone):
+            if own is None or len(spans) < 2:
+                continue
+            v, e = own[name]
+            gap = abs(v - value)
+            if gap > APART * max(abs(value), 1e-12) and gap > SIGMAS * math.hypot(e, fit.errors[name]):
+                apart.append(f"{v:.4g} +- {e:.2g} on {(a + offset) * dt:.2f}-{(b + offset) * dt:.2f} s")
+        if apart:
+            out.append(Finding("ambiguous", f"the pieces do not share one {name}: {value:.4g} +- "
+                               f"{fit.errors[name]:.2g} from all of them, " + "; ".join(apart)
+                               + " (in the fit's own units): something changes the motion between them", (name,)))
+    return out
+
+
+def _fit(system, params, x: np.ndarray, dt: float, lengths: list[int], start: Mapping[str, float],
+         integrator: str, substeps: int):
+    try:
+        batch = _Batch(system, params, x, dt, integrator, substeps, lengths)
+        if batch.T < batch.p + 2:
+            return None, None, None, None
+        theta0 = np.concatenate([[float(start[n]) for n in batch.names], batch.starts(x)])[None]
+        theta = batch.gauss_newton(theta0, x[None], 4 * CENTRE_ITERATIONS)
+        if not np.all(np.isfinite(theta)):
+            return None, None, None, None
+        rolled, jac = batch.jacobian(theta)
+    except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError):
+        return None, None, None, None
+    r = ((rolled[0] - x) * batch.weight).reshape(-1)
+    dof = max(r.size - batch.p, 1)
+    lag = float(r[1:] @ r[:-1] / max(float(r @ r), 1e-300)) if r.size > 2 else 0.0
+    lag = min(max(lag, 0.0), 0.95)
+    cov = np.linalg.pinv(jac[0] @ jac[0].T, rcond=1e-13) * float(r @ r) / dof * (1 + lag) / (1 - lag)
+    values = {n: float(theta[0, i]) for i, n in enumerate(batch.names)}
+    errors = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(batch.names)}
+    misfit = float(np.sqrt(np.mean(r ** 2)))
+    if not all(math.isfinite(v) for v in [*values.values(), *errors.values(), misfit]):
+        return None, None, None, None
+    return values, errors, misfit, rolled[0]

@@ -1,0 +1,245 @@
+"""The pieces of a measured path: every stretch where one trajectory of the equation holds, and
+the events between them.
+
+A clip is filmed with what happens around the motion: a hand holds the pendulum at its angle and
+lets go, a cart bounces off its bumper and climbs again, a ball bounces, a block rests, slides and
+stops. Each stretch between two such events is one trajectory of the equation with a starting
+state of its own; the constants are the same in all of them (train/joint.py fits them together).
+
+1. Impacts: a bounce changes the velocity between two frames: the velocity read from a few frames
+   before a frame and from a few after it differ far beyond their noise, and by a good share of
+   the speed (impacts); the frames at the impact are on neither trajectory and are left out.
+2. Each stretch between impacts is searched as the single stretch is (train/stretch.py,
+   find_stretch with search on): a rest before or after it (held still, stopped), or a part that
+   one trajectory cannot explain (a hand that moves it, a tracker that lost it), is cut off.
+3. Two neighbours that one trajectory explains together (an impact that was noise) are joined; a
+   first or last piece that goes nowhere (a hand that holds it still enough) is a hold or a stop.
+4. A release is a start: after a hold the first piece starts where the path leaves its place as a
+   parabola from rest (release), whatever the search grew into the hold.
+
+Every event is said in words (Pieces.describe): "held until 1.52 s; released; 6 flights between
+bounces at 1.23, 2.01, ... s; to the clip's last frame".
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .stretch import MIN_SEED, TOL, at_rest, find_stretch, noise_level
+
+JUMP = 6.0        # an impact: the velocities either side of a frame differ by this many times their noise
+MOVING = 2.0      # ... and turn round, at least this many times that noise fast either side
+RELEASE_S = 0.15  # seconds either side of a release its parabola from rest is fitted over
+RELEASE_SPAN = 4  # ... searched this many of those either side of where the piece was found to start
+HOLD_SHARE = 0.03  # a first or last piece that travels less than this share of the longest is a hold or a stop
+SIDE_S = 0.12     # seconds each side a velocity is read from, SIDE_FRAMES frames at least and at most
+SIDE_FRAMES = (5, 12)
+GAP = 1           # ... leaving out this many at the frame: the impact falls between two frames
+JOIN = 2.0     # two neighbours are one trajectory where it misses their union by at most this many times
+#                their own misfits (or the noise)
+
+
+@dataclass
+class Event:
+    """What happens at a frame: hold, release, bounce, stop, moved (by something else), lost."""
+
+    frame: int
+    kind: str
+
+    def to_dict(self, dt: float) -> dict:
+        return {"frame": self.frame, "time_s": self.frame * dt, "kind": self.kind}
+
+
+@dataclass
+class Pieces:
+    """The stretches [start, end) of a path that one trajectory each explains, in time order, and
+    the events between and around them."""
+
+    spans: list[tuple[int, int]]
+    events: list[Event] = field(default_factory=list)
+    noise: float = 0.0
+
+    def describe(self, dt: float, t0: float = 0.0, n_frames: int | None = None) -> str:
+        """The pieces and their events in one line, times from t0 seconds at frame 0."""
+        t = lambda f: f"{t0 + f * dt:.2f} s"  # noqa: E731 - a local format
+        words: list[str] = []
+        kinds = [e.kind for e in self.events]
+        hold = next((e for e in self.events if e.kind in ("hold", "moved")), None)
+        if hold is not None:
+            words.append(("held still until " if hold.kind == "hold" else
+                          "moved by something other than the equation (a hand?) until ") + t(hold.frame))
+            if "release" in kinds:
+                words.append("released")
+        bounces = [e.frame for e in self.events if e.kind == "bounce"]
+        n = len(self.spans)
+        if bounces:
+            shown = ", ".join(t(b)[:-2] for b in bounces[:8]) + (", ..." if len(bounces) > 8 else "")
+            words.append(f"{n} flights between {len(bounces)} bounce{'s' if len(bounces) > 1 else ''} at {shown} s")
+        elif n > 1:
+            words.append(f"{n} pieces, apart at " + ", ".join(t(a) for a, _ in self.spans[1:]))
+        else:
+            words.append(f"one trajectory from {t(self.spans[0][0])} to {t(self.spans[0][1])}" if self.spans
+                         else "no stretch that one trajectory explains")
+        end = next((e for e in self.events if e.kind in ("stop", "lost")), None)
+        if end is not None:
+            words.append(("comes to rest at " if end.kind == "stop" else "leaves the trajectory at ") + t(end.frame))
+        elif self.spans and n_frames is not None and self.spans[-1][1] >= n_frames:
+            words.append("to the clip's last frame")
+        return "; ".join(words)
+
+    def to_dict(self, dt: float, n_frames: int | None = None) -> dict:
+        """Plain data (meta["pieces"]): frames of the fitted frames, end exclusive, and seconds."""
+        return {"pieces": [[a, b] for a, b in self.spans], "pieces_s": [[a * dt, b * dt] for a, b in self.spans],
+                "events": [e.to_dict(dt) for e in self.events], "n_frames": n_frames,
+                "summary": self.describe(dt, 0.0, n_frames), "noise": self.noise}
+
+    @classmethod
+    def from_dict(cls, d) -> "Pieces":
+        return cls([(int(a), int(b)) for a, b in d.get("pieces", ())],
+                   [Event(int(e["frame"]), str(e["kind"])) for e in d.get("events", ())], float(d.get("noise", 0.0)))
+
+
+def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tuple[int, int]]:
+    """Frames [a, b) around each velocity jump of the path x (T, k) within [lo, hi), in order.
+
+    Before and after every frame a parabola is fitted to SIDE_S seconds of frames (leaving GAP frames at the
+    frame itself: the impact falls between two frames); each gives the velocity at the frame. A
+    jump is where they differ by JUMP times their noise (exact for a parabola's fit) and point
+    opposite ways, each MOVING times that noise fast (a bounce turns the motion round; a release
+    starts from rest and a swing's turning point is as slow either side); the local largest of such
+    frames, with the GAP frames either side, is the impact."""
+    x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
+    SIDE = int(np.clip(round(SIDE_S / dt), *SIDE_FRAMES))
+    if hi - lo < 2 * (SIDE + GAP) + 1:
+        return []
+    t = np.arange(SIDE, dtype=np.float64)
+    # the velocity at the frame from the SIDE frames after it (starting GAP frames on), and before it
+    after = _slope_weights(t + GAP)
+    before = -_slope_weights(t + GAP)[::-1]
+    sigma = noise * math.sqrt(float(after @ after + before @ before))
+    score = np.zeros(len(x))
+    for i in range(lo + SIDE + GAP, hi - SIDE - GAP + 1):
+        va = after @ x[i + GAP:i + GAP + SIDE]
+        vb = before @ x[i - GAP - SIDE + 1:i - GAP + 1]
+        jump = np.abs(va - vb)
+        # a bounce turns the motion round, fast either side: a release (from rest) or a swing's
+        # turning point (as slow on both sides) does not
+        ok = (jump > JUMP * sigma) & (va * vb < 0) & (np.minimum(np.abs(va), np.abs(vb)) > MOVING * sigma)
+        score[i] = float((jump * ok).max()) / sigma
+    out: list[tuple[int, int]] = []
+    for i in np.flatnonzero(score > 0):
+        if score[i] < score[max(i - SIDE, 0):i + SIDE + 1].max():
+            continue  # not the local largest
+        if out and i - GAP < out[-1][1]:
+            continue
+        out.append((int(i - GAP), int(i + GAP + 1)))
+    return out
+
+
+def _slope_weights(t: np.ndarray) -> np.ndarray:
+    """w such that w @ y is the slope at t = 0 of the parabola least-squares fitted to y at times t."""
+    a = np.stack([np.ones_like(t), t, t * t], axis=1)
+    return np.linalg.pinv(a)[1]
+
+
+def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray | None], *,
+                min_len: int = MIN_SEED) -> Pieces:
+    """Every stretch of the path x (T, k) that one trajectory explains (see the module docstring).
+    fit(a, b): the residual of one trajectory fitted to frames [a, b), or None, as find_stretch's."""
+    x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
+    T = len(x)
+    noise_all = noise_level(x)
+    rest = at_rest(x, dt, noise_all)
+    moving = np.flatnonzero(~rest)
+    if len(moving) == 0:
+        return Pieces([], [Event(0, "hold")], noise_all)
+    lo, hi = int(moving[0]), int(moving[-1]) + 1
+    noise = noise_level(x[lo:hi]) if hi - lo >= 8 else noise_all
+    cuts = impacts(x, noise, lo, hi, dt)
+    # the stretches between impacts, each searched for the part one trajectory explains (a rest
+    # before the first or after the last is found there, as the single stretch finds it)
+    bounds = [0] + [v for c in cuts for v in c] + [T]
+    spans: list[tuple[int, int]] = []
+    for a, b in zip(bounds[::2], bounds[1::2]):
+        if b - a < min_len:
+            continue
+        part = find_stretch(x[a:b], dt, lambda i, j, a=a: fit(a + i, a + j), min_len=min_len, search=True)
+        if part.end - part.start >= min_len and _rms(fit(a + part.start, a + part.end)) is not None:
+            spans.append((int(a + part.start), int(a + part.end)))
+    spans = _joined(spans, fit, noise)
+    if len(spans) > 1:
+        # a hand that holds the thing, or a thing come to rest, follows a trajectory of its own that
+        # goes nowhere (a pendulum 700 m long): it is no piece of the motion
+        travel = [float(np.ptp(x[a:b], axis=0).max()) for a, b in spans]
+        keep = [i for i, v in enumerate(travel) if v >= HOLD_SHARE * max(travel) or 0 < i < len(spans) - 1]
+        spans = [spans[i] for i in keep]
+    events: list[Event] = []
+    if spans and (spans[0][0] > 0 or rest[0]):
+        # a release is a start: the motion leaves the held place from rest; the search may have
+        # grown the first piece into the hold (a fall from rest is one trajectory with it, nearly),
+        # or stopped short of the release
+        a, b = spans[0]
+        opening = int(np.argmin(rest)) if rest[0] else 0  # the first frame after the clip's opening rest
+        r = release(x, 0, max(a, opening), b, dt)
+        if r is not None and b - r >= min_len:
+            spans[0] = (r, b)
+    if spans:
+        first = spans[0][0]
+        if first > 0:
+            still = rest[:first].mean() > 0.5
+            events.append(Event(first, "hold" if still else "moved"))
+            events.append(Event(first, "release"))
+        for (_, b), (a, _) in zip(spans, spans[1:]):
+            hit = next((c for c in cuts if b - 1 <= c[0] and c[1] <= a + 1), None)
+            events.append(Event((hit[0] + hit[1]) // 2 if hit else a, "bounce" if hit else "lost"))
+        last = spans[-1][1]
+        if last < T:
+            events.append(Event(last, "stop" if rest[last:].mean() > 0.5 else "lost"))
+    return Pieces(spans, events, noise)
+
+
+def release(x: np.ndarray, lo: int, a: int, b: int, dt: float) -> int | None:
+    """The frame a thing held still until then is let go, near the start a of the piece [a, b)
+    (no earlier than lo): where the path, flat before, leaves its place as a parabola from rest
+    (x = c before, c + q (t - r)^2 after: any equation's motion from rest, over a short time),
+    fitted over RELEASE_S seconds either side of every candidate frame r; the r where it leaves the
+    least share of the window's spread unexplained. None where
+    the path (its column of largest range) has too few frames around a."""
+    x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
+    column = x[:, int(np.argmax(np.ptp(x[a:b], axis=0)))]
+    w = int(np.clip(round(RELEASE_S / dt), 4, 40))
+    first, last = max(lo + w, a - RELEASE_SPAN * w), min(b - w, a + RELEASE_SPAN * w)
+    best, where = math.inf, None
+    for r in range(first, last + 1):
+        y = column[r - w:r + w]
+        s = np.arange(-w, w, dtype=np.float64) + 0.5  # the release between frames r - 1 and r
+        basis = np.stack([np.ones(2 * w), np.where(s > 0, s * s, 0.0)], axis=1)
+        coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+        # the share of the window's spread left unexplained: a hand's small wander fits a flat line and
+        # a parabola poorly, the release of a swing's pull almost exactly
+        sse = float(np.sum((basis @ coef - y) ** 2)) / max(float(np.sum((y - y.mean()) ** 2)), 1e-300)
+        if sse < best:
+            best, where = sse, r
+    return where
+
+
+def _joined(spans: list[tuple[int, int]], fit, noise: float) -> list[tuple[int, int]]:
+    """Neighbours that one trajectory explains as well as each alone are one piece."""
+    out: list[tuple[int, int]] = []
+    for span in spans:
+        if out:
+            a, b = out[-1]
+            own = max(_rms(fit(a, b)) or math.inf, _rms(fit(*span)) or math.inf, noise)
+            union = _rms(fit(a, span[1]))
+            if union is not None and union <= JOIN * own and union <= TOL * max(own, noise):
+                out[-1] = (a, span[1])
+                continue
+        out.append(span)
+    return out
+
+
+def _rms(r: np.ndarray | None) -> float | None:
+    return None if r is None or r.size == 0 else float(np.sqrt(np.mean(np.square(r))))
