@@ -14,9 +14,10 @@ from .tracking import centroids, line_of_motion, mend
 
 
 AXES = {"x": "x", "y": "y", "h": "y", "z": "y"}  # a state named so reads that image axis (y, h, z: up)
-# a named axis is read where it carries at least this share of the motion's spread along its line;
-# where it carries less, the name is taken for a habit (x'' = -k*x for a spring that bounces up and
-# down) and the line of motion is read, with a note
+# a named axis is always read (the user's word wins: a throw's height carries less of the motion
+# than its flight, and is what `y'' = -g` means); where it carries under this share of the motion's
+# spread along its line, that is said, with the name that reads the line of motion. A single
+# unnamed state's reading across its line of motion is fitted too where it carries at least this.
 AXIS_SHARE = 0.3
 TRACK_AGREE = 0.9  # the least correlation of the track's path with the shrunk frames' centroids' to read it
 
@@ -141,15 +142,17 @@ class PositionObservation(MeasuredObservation):
         n_fit = xy.shape[0] if fit_frames is None else int(fit_frames)
         states = tuple(self.equation_states or ())
         axes = [axis_of(state) for state in states]
-        weak = _weak_axes(xy[:n_fit], axes) if states and all(axes) else []
-        if states and all(axes) and not weak:
+        if states and all(axes):
             prepared = self._axes(xy, states, axes, n_fit, out.components, pixels, where, frames.dtype)
+            weak = _weak_axes(xy[:n_fit], axes)
+            if weak:
+                names = ", ".join(f"{states[i]} ({'across' if axes[i] == 'x' else 'up'})" for i in weak)
+                prepared.caution = (f"{names} barely move{'s' if len(weak) == 1 else ''}: under "
+                                    f"{100 * AXIS_SHARE:.0f}% of the motion runs along the image axis the name says; "
+                                    "name the state s to read its line of motion instead")
+                prepared.note += "; " + prepared.caution
         else:
             prepared = self._line(xy, n_fit, out.components, pixels, where, frames.dtype)
-            if weak:
-                prepared.note += (f"; not along the axis {'the name' if len(weak) == 1 else 'the names'} "
-                                  f"{', '.join(states[i] for i in weak)} would say: it carries under "
-                                  f"{100 * AXIS_SHARE:.0f}% of the motion")
         if where:  # the reader's track is in the source's pixels, with a frame it did not see left out
             prepared.drawing.update(space="source",
                                     track=[None if np.isnan(x) else [float(x), float(y)] for x, y in self.track.xy])
