@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
 from fitode.errors import FitodeError
+from fitode.measurement import geometry
 from fitode.train.history import History  # torch-free, like everything this module imports at the top
 
 RUNS_DIR = "fitode-runs"
@@ -98,7 +99,7 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
 
     clip, t0 = read_clip(video, read, req.calibration, progress=progress)
     frames = api.as_frames(clip.frames)
-    plan = api.plan(req, frames, clip.dt, track=clip.track)
+    plan = api.plan(req, frames, clip.dt, track=clip.track, geometry=geometry(clip))
     clip, t0, plan = read_again(video, read, req, clip, t0, plan, progress=progress)
     frames = api.as_frames(clip.frames)
     for line in rep.understanding_lines(ode, spec, analysis, clip, plan):
@@ -118,7 +119,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     try:
         if len(reqs) > 1:
             from fitode.compare import compare
-            comparison = compare(reqs, frames, clip.dt, track=clip.track, time_offset=t0, callback=recorder,
+            comparison = compare(reqs, frames, clip.dt, track=clip.track, geometry=geometry(clip), time_offset=t0,
+                                 callback=recorder,
                                  progress=progress, rate_std=rate_std(read.fps), log=say, first_plan=plan)
             chosen = comparison.candidates[comparison.chosen]
             result, req, plan = chosen.result, chosen.request, chosen.plan
@@ -234,7 +236,7 @@ def level_in_detail(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
         # more rows can split what the shrunk frames saw as one line (the real bottle at 360 rows)
         return clip, t0, plan
     req = replace(req, observe=plan.observation)
-    return finer, t1, api.plan(req, frames, finer.dt, track=finer.track)
+    return finer, t1, api.plan(req, frames, finer.dt, track=finer.track, geometry=geometry(finer))
 
 
 def _observation_parts(plan):
@@ -258,7 +260,7 @@ def light_in_colour(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
         return clip, t0, plan
     clip, t0 = read_clip(video, replace(read, color=True, stride=clip.stride), req.calibration, progress=progress)
     req = replace(req, observe=plan.observation)
-    return clip, t0, api.plan(req, api.as_frames(clip.frames), clip.dt, track=clip.track)
+    return clip, t0, api.plan(req, api.as_frames(clip.frames), clip.dt, track=clip.track, geometry=geometry(clip))
 
 
 def source_measurement(result, clip) -> None:
