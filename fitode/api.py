@@ -116,18 +116,27 @@ def plan(req: FitRequest, frames: torch.Tensor, dt: float, track=None, geometry=
                      init=req.init, observe_source=req.observe_source, track=track, lengths=lengths)
 
 
+def measure(fit_plan: FitPlan, frames: torch.Tensor):
+    """The measurement stage (fitode.train.measure.measure): what the plan's observation reads off
+    the frames, or its one-line error, before any fit or output."""
+    from fitode.train.measure import measure as measure_frames
+    return measure_frames(frames, fit_plan)
+
+
 def execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_offset: float = 0.0,
             callback: Callback | None = None, progress: bool = False, rate_std: float = 0.0,
-            stretch: tuple[int, int] | None = None) -> FitResult:
+            stretch: tuple[int, int] | None = None, measurement=None) -> FitResult:
     """Train the plan, calibrate when asked (not after an interruption: unfinished training gives
     no latent worth a scale), make every constant's interval and assess: the FitResult with its
     intervals, verdicts and warnings. rate_std: the relative uncertainty of the frame rate (0 for
     a dt or --fps the user gave; fitode.train.interval.RATE_CONTAINER_STD for a container's).
-    stretch: the frames a measured path is fitted on, as fitode.train.trainer.fit_frames takes it."""
+    stretch: the frames a measured path is fitted on, as fitode.train.trainer.fit_frames takes it;
+    measurement: the plan's Measurement (fitode.train.measure), made by `measure` before."""
     from fitode.eqparse import analyse
     from fitode.train.assess import assess
 
-    result = fit_frames(frames, fit_plan, callback=callback, progress=progress, stretch=stretch)
+    result = fit_frames(frames, fit_plan, callback=callback, progress=progress, stretch=stretch,
+                        measurement=measurement)
     try:
         analysis = analyse(req.system)
     except Exception:  # noqa: BLE001 - the analysis is advice; sympy can fail on unusual equations

@@ -96,6 +96,7 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
         clip, time_offset, plan = read_again(frames_path, _read_options(video), req, clip, time_offset, plan,
                                              progress=progress)
         x, track, where = api.as_frames(clip.frames), clip.track, geometry(clip)
+    measurement = api.measure(plan, x)  # what cannot be measured fails before any fit
     if len(reqs) > 1:
         from fitode.compare import compare
         comparison = compare(reqs, x, dt, track=track, geometry=where, time_offset=time_offset, callback=callback, progress=progress,
@@ -104,7 +105,7 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
         result.meta["comparison"] = comparison.to_dict()
     else:
         result = api.execute(req, plan, x, time_offset=time_offset, callback=callback, progress=progress,
-                             rate_std=rate)
+                             rate_std=rate, measurement=measurement)
     if clip is not None:  # what was measured, in the video's pixels as `fitode VIDEO` writes it
         from fitode.pipeline import source_measurement
         source_measurement(result, clip)

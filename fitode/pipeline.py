@@ -102,6 +102,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     plan = api.plan(req, frames, clip.dt, track=clip.track, geometry=geometry(clip))
     clip, t0, plan = read_again(video, read, req, clip, t0, plan, progress=progress)
     frames = api.as_frames(clip.frames)
+    # what cannot be measured fails here, in one line, before the header and the output folder
+    measurement = api.measure(plan, frames)
     for line in rep.understanding_lines(ode, spec, analysis, clip, plan):
         say(line)
 
@@ -131,7 +133,7 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
                                             options, t0), "created": report["created"]}
         else:
             result = api.execute(req, plan, frames, time_offset=t0, callback=recorder, progress=progress,
-                                 rate_std=rate_std(read.fps))
+                                 rate_std=rate_std(read.fps), measurement=measurement)
     except KeyboardInterrupt:
         _write_partial(report, recorder, folder, "incomplete", "interrupted (Ctrl-C) during training", plots_done)
         say(f"interrupted: partial results in {folder}")

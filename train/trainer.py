@@ -79,18 +79,22 @@ def restart_inits(system: OdeSystem, params: Mapping[str, ParamSpec], n: int, se
 
 
 def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None = None,
-               progress: bool = False, stretch: tuple[int, int] | None = None) -> FitResult:
+               progress: bool = False, stretch: tuple[int, int] | None = None, measurement=None) -> FitResult:
     """Every restart of the plan on raw float frames (T, C, H, W), trained on the first
     plan.n_train; the estimates and the measurement's checks (result.checks, with their findings).
     The verdicts are the assessment's (fitode.train.assess), made after any calibration.
     stretch: the [first, last) frames a measured path is fitted on, found before (for another
-    candidate equation of a comparison, which must fit the same frames): no stretch is looked for."""
+    candidate equation of a comparison, which must fit the same frames): no stretch is looked for.
+    measurement: the frames as measure.measure read them for this plan (None: measured here)."""
     system, params, config, observation, dt = plan.system, plan.params, plan.config, plan.observation, plan.dt
     n_total, n_train = plan.n_frames, plan.n_train
     if frames.shape[0] != n_total:
         raise TrainingError(f"the plan is for {n_total} frames, got {frames.shape[0]}")
     device = torch.device(config.device)
-    prepared = observation.prepare(frames.to(device), config.encoder, fit_frames=n_train).in_order(system.states)
+    if measurement is None:
+        from .measure import measure
+        measurement = measure(frames, plan)
+    prepared = measurement.prepared
     gauges = observation.gauge_plan(gauge_plan(system))
     coefs = prepared.components[:n_train]  # the training frames' leading principal components
     perspective = straight = None  # straight: one trajectory over the best run's state, for both checks
