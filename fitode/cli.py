@@ -103,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
 @contextlib.contextmanager
 def _sigterm_as_interrupt():
     """SIGTERM (a scheduler's or `kill`'s stop) raises KeyboardInterrupt in the main thread, so it
-    takes Ctrl-C's path: a run leaves its folder marked incomplete, a batch stops its workers and
+    takes Ctrl-C's path: a run leaves its folder marked interrupted, a batch stops its workers and
     writes a consistent summary. The list it yields is non-empty once SIGTERM arrived.
     """
     term: list[int] = []

@@ -96,8 +96,12 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
         result = comparison.result
         result.meta["comparison"] = comparison.to_dict()
     else:
-        result = api.execute(req, plan, x, time_offset=time_offset, callback=callback, progress=progress,
-                             rate_std=rate)
+        from fitode.interrupted import Stopped
+        try:
+            result = api.execute(req, plan, x, time_offset=time_offset, callback=callback, progress=progress,
+                                 rate_std=rate)
+        except Stopped as stop:  # Ctrl-C after training: the estimates, marked (result.meta["stopped"])
+            result = stop.result
     if clip is not None:  # what was measured, in the video's pixels as `fitode VIDEO` writes it
         from fitode.pipeline import source_measurement
         source_measurement(result, clip)
