@@ -85,6 +85,7 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     the partial folder is written (RunInterrupted, carrying the RunOutcome, when the trainer
     returned what it had).
     """
+    target = _check_out_dir(out_dir)  # first: an unwritable --out costs not even the import of torch
     from fitode import api
     from fitode import report as rep
 
@@ -96,7 +97,6 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     reqs = api.requests(**fit)  # one per candidate equation (several: a comparison, fitode.compare)
     req = reqs[0]
     ode, spec = req.system, req.spec
-    target = _check_out_dir(out_dir)
     analysis = rep.analysis_dict(rep.identifiability(ode))
 
     clip, t0 = read_clip(video, read, req.calibration, progress=progress)
@@ -360,7 +360,30 @@ def _check_out_dir(out_dir) -> Path | None:
         if any(p.iterdir()):
             raise FitodeError(f"--out {p}: folder exists and is not empty; fitode never overwrites a run, "
                               "choose another folder")
+    _check_writable(p)
     return p
+
+
+def _check_writable(p: Path) -> None:
+    """A folder can be made at p and written in: tried now (made and removed again), so an
+    unwritable place (/proc/x, a path through a file) costs no decode and no fit."""
+    made = [a for a in (p, *p.parents) if not a.exists()]
+    probe = p / ".fitode-write-check"
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+        probe.touch()
+        probe.unlink()
+    except OSError as exc:
+        above = next((a for a in p.parents if a.exists()), None)
+        why = (f"{above} is a file, not a folder" if above is not None and not above.is_dir()
+               else exc.strerror or type(exc).__name__)
+        raise FitodeError(f"--out {p}: cannot write there ({why}); choose another folder") from None
+    finally:
+        for a in made:  # nothing is left behind until the fit writes its folder
+            try:
+                a.rmdir()
+            except OSError:
+                break
 
 
 def _make_out_dir(target: Path | None, stem: str) -> Path:
