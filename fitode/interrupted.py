@@ -96,5 +96,16 @@ def fitted(fit_frames, *args, calibrating: bool = False, **kw) -> Any:
     return result
 
 
+def mark_report(report: dict, result: Any) -> None:
+    """result.json of an interrupted result: "status" interrupted, the "stage", and why ("error")."""
+    if not result.meta.get("interrupted"):
+        return
+    stage = (result.meta.get("stopped") or {}).get("stage", "training")
+    stopped = [r for r in result.runs if r.status == "interrupted"]
+    where = f"run {stopped[0].index + 1} at step {stopped[0].steps}" if stopped else f"the {stage}"
+    report["status"], report["stage"] = "interrupted", stage
+    report["error"] = f"interrupted in {where}"
+
+
 def _and(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]

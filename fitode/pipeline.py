@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
 from fitode.errors import FitodeError
-from fitode.interrupted import Stopped, reached
+from fitode.interrupted import Stopped, mark_report, reached
 from fitode.train.history import History  # torch-free, like everything this module imports at the top
 
 RUNS_DIR = "fitode-runs"
@@ -35,7 +35,7 @@ class RunInterrupted(KeyboardInterrupt):
 class RunOutcome:
     """What run_video returns. report is exactly what result.json holds."""
 
-    result: Any  # fitode.train.result.FitResult (not imported here so `import fitode.pipeline` stays light)
+    result: Any  # fitode.result.Result (not imported here so `import fitode.pipeline` stays light)
     out_dir: Path
     report: dict[str, Any]
     warnings: list[str] = field(default_factory=list)
@@ -158,18 +158,13 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     if comparison is not None:
         report["comparison"] = comparison.to_dict()
         result.meta["comparison"] = report["comparison"]
-    if interrupted:
-        stage = (result.meta.get("stopped") or {}).get("stage", "training")
-        stopped = [r for r in result.runs if r.status == "interrupted"]
-        where = f"run {stopped[0].index + 1} at step {stopped[0].steps}" if stopped else f"the {stage}"
-        report["status"], report["stage"] = "interrupted", stage
-        report["error"] = f"interrupted in {where}"
-        if req.calibration and result.calibration is None:
-            report["warnings"].append(f"--calibrate was not applied: the {stage} was interrupted")
+    mark_report(report, result)
+    if interrupted and req.calibration and result.calibration is None:
+        report["warnings"].append(f"--calibrate was not applied: the {report['stage']} was interrupted")
     result.meta.update({"input": report["input"]})
     # the numbers first: an interruption while drawing loses only pictures
     from fitode.tables import write_run_tables
-    result.save(folder / "fit.json")
+    result.save_json(folder / "fit.json")
     tables = write_run_tables(report, folder)
     report["files"] = sorted(["result.json", "fit.json", *plots_done, *tables])
     rep.write_json(report, folder / "result.json")
@@ -186,7 +181,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     report["files"] = sorted(["result.json", "fit.json", *plots_done, *tables])
     rep.write_json(report, folder / "result.json")
     say(f"wrote {folder}/ ({', '.join(report['files'])})")
-    outcome = RunOutcome(result=result, out_dir=folder, report=report, warnings=list(report["warnings"]))
+    from fitode.result import Result
+    outcome = RunOutcome(result=Result.of(result), out_dir=folder, report=report, warnings=list(report["warnings"]))
     if interrupted:
         raise RunInterrupted(outcome)
     return outcome
