@@ -400,6 +400,7 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
     edge = 1.2
     cv.paint(R.segment(x_top, y_top, x_bot, floor_y, edge), _rgb(0.35, 0.26, 0.16),
              (x_top - 2, y_top - 2, x_bot + 2, floor_y + 2))
+    ruler = _ruler(cv, x_bot - 0.5 * ppm, x_bot, 0.08 * h, 0.5, max(2.0, 0.02 * h))
     body = _rgb(0.15, 0.35, 0.7)
 
     def draw(c: R.Canvas, i: int) -> None:
@@ -420,7 +421,7 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
                   truth={"alpha": float(alpha), "mu": mu},
                   physical={"a": float(a), "alpha_deg": float(alpha_deg), "mu": mu, "g": G, "t0": t0,
                             "rest_before_frames": before, "rest_after_frames": after,
-                            "s0": s0, "ramp_length": ramp, "pixels_per_metre": float(ppm)},
+                            "s0": s0, "ramp_length": ramp, "pixels_per_metre": float(ppm), "ruler": ruler},
                   state=np.stack([s, v], axis=1), state_names=("x", "x'"))
 
 
@@ -649,14 +650,33 @@ def _spring(w2, rng, duration, dt, h, w, p) -> _Scene:
 THROW_EQUATION = "y'' = -g"
 
 
+def _ruler(cv, x1: float, x2: float, y: float, metres: float, tick: float) -> dict:
+    """Two dark marks on the wall `metres` apart (render coordinates x1, x2 at height y), joined
+    by a thin bar, as a ruler or tape in view: the record gives their centres in source pixels
+    (centres at whole numbers, as --scale takes them) for a scale stick."""
+    ink = _rgb(0.1, 0.1, 0.12)
+    for x in (x1, x2):
+        cv.paint(R.segment(x, y - tick, x, y + tick, 0.8), ink, (x - 3, y - tick - 3, x + 3, y + tick + 3))
+    cv.paint(R.segment(x1, y, x2, y, 0.4), ink, (x1 - 2, y - 2, x2 + 2, y + 2))
+    return {"p1": [x1 - 0.5, y - 0.5], "p2": [x2 - 0.5, y - 0.5], "metres": float(metres)}
+
+
 def _throw(g, rng, duration, dt, h, w, p) -> _Scene:
     """A small ball thrown across the view: held still at the launch point (rest_before
     seconds), a parabola (x at constant speed, y'' = -g up), then still where it lands
-    (rest_after). Filmed as a slow-motion phone does: give fps=240 and store the frames at 30."""
+    (rest_after). Filmed as a slow-motion phone does: give fps=240 and store the frames at 30.
+    angle (degrees): the launch angle, which sets the flight's time over its range; a ruler
+    half the range long hangs on the wall above (physical "ruler": its marks in source pixels)."""
     if not 0.5 <= g <= 50:
         raise FitodeError(f"g must be between 0.5 and 50 m/s^2, got {g}")
-    flight = float(p.get("flight", 0.8))                # seconds in the air
     span = float(p.get("range", 2.0))                    # metres across
+    if p.get("angle") is not None:
+        angle = float(p["angle"])
+        if not 1.0 <= angle <= 80.0:
+            raise FitodeError(f"the launch angle must be between 1 and 80 degrees, got {angle}")
+        flight = float(np.sqrt(2 * span * np.tan(np.deg2rad(angle)) / g))
+    else:
+        flight = float(p.get("flight", 0.8))            # seconds in the air
     radius = float(p.get("radius", 0.011))               # metres
     rest_before, rest_after = float(p.get("rest_before", 0.1)), float(p.get("rest_after", 0.1))
     vx, vy = span / flight, g * flight / 2
@@ -678,6 +698,7 @@ def _throw(g, rng, duration, dt, h, w, p) -> _Scene:
     floor_y = int(oy + 3 * rb + 2)
     _paste_rows(bg, floor_y, _wood(rng, h - floor_y, w, base=(0.5, 0.42, 0.33)))
     cv = R.Canvas(bg, 4)
+    ruler = _ruler(cv, ox + 0.25 * span * ppm, ox + 0.75 * span * ppm, 0.08 * h, 0.5 * span, max(2.0, 0.02 * h))
 
     def draw(cc: R.Canvas, i: int) -> None:
         bx, by = ox + x[i] * ppm, oy - y[i] * ppm
@@ -689,6 +710,7 @@ def _throw(g, rng, duration, dt, h, w, p) -> _Scene:
                   physical={"g": float(g), "vx": vx, "vy": vy, "flight_s": flight, "range": span,
                             "radius_px": float(rb), "pixels_per_metre": float(ppm),
                             "flight_start_frame": before, "flight_end_frame": before + inflight,
+                            "angle_deg": float(np.rad2deg(np.arctan2(vy, vx))), "ruler": ruler,
                             "x": x.tolist()},
                   state=np.stack([y, vel], axis=1), state_names=("y", "y'"))
 
@@ -696,11 +718,13 @@ def _throw(g, rng, duration, dt, h, w, p) -> _Scene:
 # --- clips as they are filmed: a hold, a release, bounces -------------------------------------
 
 def _scale_truth(a, b, metres: float) -> dict:
-    """The scale a user reads off two marks in view: their pixel points and the distance between
-    them in metres, in the plane of the motion (the text --scale takes)."""
-    pts = [round(float(v), 2) for v in (*a, *b)]
-    return {"points": pts, "metres": float(metres),
-            "text": f"{pts[0]:g},{pts[1]:g},{pts[2]:g},{pts[3]:g}={metres:g}"}
+    """The scale a user reads off two marks in view (render coordinates a, b): their centres in
+    source pixels and the distance between them in metres, in the plane of the motion, as the
+    ruler of the other scenes records it, with the text --scale takes."""
+    p1, p2 = [round(float(a[0]) - 0.5, 2), round(float(a[1]) - 0.5, 2)], [round(float(b[0]) - 0.5, 2),
+                                                                          round(float(b[1]) - 0.5, 2)]
+    return {"p1": p1, "p2": p2, "metres": float(metres),
+            "text": f"{p1[0]:g},{p1[1]:g},{p2[0]:g},{p2[1]:g}={metres:g}"}
 
 
 def _flights(x0: float, v0: float, a: float, e: float, bounces: int, t: np.ndarray):
@@ -789,7 +813,7 @@ def _held_pendulum(L, rng, duration, dt, h, w, p) -> _Scene:
                   physical={"g": G, "L": L, "zeta": zeta, "theta0_deg": float(np.rad2deg(side * theta0)),
                             "hold_s": held * dt, "release_frame": held, "pixels_per_metre": float(ppm),
                             "pivot_px": [float(px), float(py)], "substeps": 20,
-                            "scale": _scale_truth(ma, mb, gap)},
+                            "ruler": _scale_truth(ma, mb, gap)},
                   state=np.stack([theta, omega], axis=1), state_names=("theta", "theta'"))
 
 
@@ -845,7 +869,7 @@ def _bumper_cart(a, rng, duration, dt, h, w, p) -> _Scene:
                             "restitution": e, "bounces": bounces,
                             "release_frame": first, "bounce_s": [rest_before + tb for tb in times[:-1]],
                             "alpha_deg": float(np.rad2deg(alpha)), "pixels_per_metre": float(ppm),
-                            "scale": _scale_truth(ma, mb, gap)},
+                            "ruler": _scale_truth(ma, mb, gap)},
                   state=np.stack([x, v], axis=1), state_names=("x", "x'"))
 
 
@@ -887,7 +911,7 @@ def _bouncing_ball(g, rng, duration, dt, h, w, p) -> _Scene:
                   physical={"g": float(g), "g_px": float(g * ppm), "restitution": e, "bounces": bounces,
                             "release_frame": int(np.ceil(rest_before / dt)),
                             "bounce_s": [rest_before + tb for tb in times[:-1]], "h0": drop, "rest_before_s": rest_before,
-                            "pixels_per_metre": float(ppm), "scale": _scale_truth(ma, mb, gap)},
+                            "pixels_per_metre": float(ppm), "ruler": _scale_truth(ma, mb, gap)},
                   state=np.stack([y, v], axis=1), state_names=("y", "y'"))
 
 
@@ -932,7 +956,7 @@ SCENES: dict[str, SceneInfo] = {i.name: i for i in (
               ("c", "amplitude", "sway", "sway_omega", "distractors"), SPRING_EQUATION, "spring", _spring),
     SceneInfo("throw", "g", (1.62, 9.80665, 24.79), "m/s^2",  # the Moon, the Earth, Jupiter
               "a small ball thrown across the view (film it at 240 fps)", None,
-              ("flight", "range", "radius", "rest_before", "rest_after"), THROW_EQUATION, "throw", _throw),
+              ("flight", "angle", "range", "radius", "rest_before", "rest_after"), THROW_EQUATION, "throw", _throw),
     SceneInfo("held_pendulum", "L", (0.45, 0.7, 1.2), "m",
               "a dark pendulum a hand holds at its starting angle, lets go and draws back", 10.0,
               ("zeta", "theta0_deg", "hold", "tremor_deg"), PENDULUM_EQUATION, "pendulum", _held_pendulum),
