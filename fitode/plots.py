@@ -485,7 +485,8 @@ def _mark_pieces(ax, t: np.ndarray, pieces: Mapping[str, Any] | None) -> None:
         a, b = max(int(a), 0), min(int(b), n) - 1
         if a <= b:
             ax.axvspan(t[a], t[b], color="tab:green", alpha=0.12, zorder=0,
-                       label=f"the {len(pieces['pieces'])} pieces fitted together" if k == 0 else None)
+                       label=(f"the {len(pieces['pieces'])} pieces fitted together" if len(pieces["pieces"]) > 1
+                              else "the stretch fitted") if k == 0 else None)
     seen = set()
     for e in pieces.get("events", ()):
         f = int(e["frame"])
