@@ -50,6 +50,7 @@ import numpy as np
 
 from fitode.errors import FitodeError
 
+from .residuals import correlation, correlation_time
 from .selection import rivals
 
 
@@ -80,7 +81,6 @@ ONE_WAY_BEND = 0.05
 # +-4% interval that held nothing)
 CURVE_POWER = 2.4
 BLOCK_TIMES = 3  # blocks three autocorrelation times long: what is left is block_bias's
-MAX_RHO = 0.98
 DAMPINGS = (1e-9, 1e-5, 1e-2, 1.0)  # Levenberg-Marquardt dampings tried at once, relative to the diagonal
 HELD_OUT = 0.25  # the last quarter of the path, predicted from a fit of the rest
 MIN_KEPT = 0.6  # fewer refits than this fraction succeeded: no interval from the residuals
@@ -137,43 +137,12 @@ class Bootstrap:
                 "geometry": dict(self.geometry)}
 
 
-def correlation(residuals: np.ndarray) -> float:
-    """The lag-one autocorrelation of the residuals, the largest over the states (0 to MAX_RHO)."""
-    r = np.asarray(residuals, dtype=float).reshape(len(residuals), -1)
-    r = r - r.mean(axis=0)
-    rho = [float(r[1:, j] @ r[:-1, j] / (r[:, j] @ r[:, j])) for j in range(r.shape[1]) if r[:, j] @ r[:, j] > 0]
-    return min(max(max(rho, default=0.0), 0.0), MAX_RHO)
-
-
 def block_length(residuals: np.ndarray) -> int:
     """BLOCK_TIMES the integrated autocorrelation time of the residuals (correlation_time), at
     least 1 and at most a quarter of the frames: a block must hold what hangs together, and
     there must be blocks to draw."""
     n = len(residuals)
     return int(min(max(1, math.ceil(BLOCK_TIMES * correlation_time(residuals))), max(1, n // 4)))
-
-
-def correlation_time(residuals: np.ndarray) -> float:
-    """The integrated autocorrelation time of residuals (T, k) in samples: the larger of the sum
-    of their autocorrelation over its initial positive run, Geyer's cut, and an AR(1)'s
-    (1 + rho) / (1 - rho) from the lag-one correlation; the largest over the states."""
-    r = np.asarray(residuals, dtype=float).reshape(len(residuals), -1)
-    n = len(r)
-    rho = correlation(r)
-    tau = (1 + rho) / (1 - rho)
-    for j in range(r.shape[1]):
-        e = r[:, j] - r[:, j].mean()
-        var = float(e @ e)
-        if var <= 0:
-            continue
-        acf = np.correlate(e, e, mode="full")[n - 1:] / var
-        s = 1.0
-        for k in range(1, n // 2):
-            if acf[k] <= 0:
-                break
-            s += 2 * acf[k]
-        tau = max(tau, s)
-    return tau
 
 
 def block_bias(rho: float, block: int) -> float:
