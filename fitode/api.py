@@ -134,19 +134,26 @@ def execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_of
     from fitode.eqparse import analyse
     from fitode.train.assess import assess
 
-    result = fit_frames(frames, fit_plan, callback=callback, progress=progress, stretch=stretch,
-                        measurement=measurement)
+    from fitode.interrupted import fitted, stage
+
+    # an interruption after training keeps the estimates: fitode.interrupted.Stopped carries them
+    calibrating = bool(req.calibration)
+    result = fitted(fit_frames, frames, fit_plan, callback=callback, progress=progress, stretch=stretch,
+                    calibrating=calibrating, measurement=measurement)
     try:
         analysis = analyse(req.system)
     except Exception:  # noqa: BLE001 - the analysis is advice; sympy can fail on unusual equations
         analysis = None
     calibrated, extra = (), []
     if req.calibration and not result.meta.get("interrupted"):
-        calibrated, extra = _calibrate(result, req, analysis, time_offset)
+        with stage(result, "calibration", calibrating=calibrating):
+            calibrated, extra = _calibrate(result, req, analysis, time_offset)
     elif req.calibration:
         result.meta["calibration_skipped"] = "interrupted"
-    _intervals(result, req, rate_std)
-    assess(result, analysis, calibrated=calibrated, extra=extra).apply(result)
+    with stage(result, "intervals"):
+        _intervals(result, req, rate_std)
+    with stage(result, "assessment"):
+        assess(result, analysis, calibrated=calibrated, extra=extra).apply(result)
     result.warnings[:0] = list(req.system.hints)  # the parser's advice stays with the numbers it concerns
     return result
 

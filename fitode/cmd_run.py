@@ -74,7 +74,8 @@ def run(args: argparse.Namespace) -> int:
         outcome = _run(args, const, init, say)
     except RunInterrupted as stop:  # the folder is written; show what the restarts had reached
         say(format_table(stop.outcome.report))
-        say(f"results (incomplete): {stop.outcome.out_dir}")
+        say(f"results (interrupted during the {stop.outcome.report.get('stage', 'training')}): "
+            f"{stop.outcome.out_dir}")
         raise
     say(format_table(outcome.report))
     if not args.quiet:

@@ -14,7 +14,7 @@ from fitode.errors import ConfigError
 if TYPE_CHECKING:
     from fitode.eqparse import OdeSystem, ParamSpec
     from fitode.train.observe import ObservationModel
-    from fitode.train.result import FitResult
+    from fitode.result import Result
     from fitode.train.trainer import Callback
 
 # read_video's options: they apply to a video path, not to frames given as an array
@@ -30,7 +30,7 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
         roi: tuple[int, int, int, int] | str | None = None, size: tuple[int, int] | str | None = None,
         color: bool = False, stride: int | str | None = None, mask: str | None = None,
         time_offset: float = 0.0, callback: Callback | None = None, progress: bool = True,
-        **options: Any) -> FitResult:
+        **options: Any) -> Result:
     """Estimate the learnable constants of an equation from a video or a frame sequence.
 
     frames: a video path (file, folder of images or .npy, as `fitode VIDEO` takes), read with
@@ -104,12 +104,17 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
         result = comparison.result
         result.meta["comparison"] = comparison.to_dict()
     else:
-        result = api.execute(req, plan, x, time_offset=time_offset, callback=callback, progress=progress,
-                             rate_std=rate, measurement=measurement)
+        from fitode.interrupted import Stopped
+        try:
+            result = api.execute(req, plan, x, time_offset=time_offset, callback=callback, progress=progress,
+                                 rate_std=rate, measurement=measurement)
+        except Stopped as stop:  # Ctrl-C after training: the estimates, marked (result.meta["stopped"])
+            result = stop.result
     if clip is not None:  # what was measured, in the video's pixels as `fitode VIDEO` writes it
         from fitode.pipeline import source_measurement
         source_measurement(result, clip)
-    return result
+    from fitode.result import Result
+    return Result.of(result)
 
 
 def _read_path(path, video: dict[str, Any], dt, time_offset, req, progress: bool):

@@ -1,7 +1,9 @@
 """What a run says: the lines printed before training, result.json, and the table at the end.
 
 result.json layout (every run of `fitode VIDEO ...` writes one):
-    status            "running" | "complete" | "incomplete" (Ctrl-C) | "failed"
+    status            "running" | "complete" | "interrupted" (Ctrl-C, SIGTERM) | "failed"
+    stage             where an interrupted run stopped: training, calibration, intervals, assessment,
+                      pictures (fitode.interrupted; the estimates are kept wherever training finished)
     error             why it is not complete (absent when complete)
     fitode_version, created
     input             file, name, sha256, frames_used, frames_train, frame_shape, fps, fps_source,
