@@ -122,7 +122,7 @@ def length_lines(observation) -> list[str]:
     if lengths.metres_per_px:
         return [f"lengths: in metres (x right, y up), {1000 * lengths.metres_per_px:.5g} mm per source pixel "
                 f"from --scale (±{100 * lengths.relative_std:.2g}%)"]
-    return ["lengths: in source pixels (x right, y up); constants in px and s (--scale gives metres)"]
+    return ["lengths: in source pixels (x right, y up), constants in units of px and s; --scale gives metres"]
 
 
 def _clip_lines(clip) -> list[str]:
