@@ -101,3 +101,15 @@ def test_save_writes_the_folder_and_load_reads_it_back(result, tmp_path):
     assert isinstance(back, Result) and back.values == result.values and back.summary() == result.summary()
     with pytest.raises(fitode.FitodeError, match="not empty"):  # nothing is overwritten
         result.save(folder)
+
+
+def test_numpys_warnings_become_one_line_each_not_terminal_noise(recwarn):
+    from fitode.numeric_warnings import kept
+    with kept() as numeric:
+        for _ in range(3):
+            np.exp(np.array([1000.0]))
+        np.sqrt(np.array([-1.0]))
+    lines = numeric.lines()
+    assert len(lines) == 2 and lines[0].startswith("numpy warned 3 times during the fit: overflow encountered in exp")
+    assert "invalid value encountered in sqrt" in lines[1]
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]  # none reached the terminal
