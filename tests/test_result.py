@@ -113,3 +113,12 @@ def test_numpys_warnings_become_one_line_each_not_terminal_noise(recwarn):
     assert len(lines) == 2 and lines[0].startswith("numpy warned 3 times during the fit: overflow encountered in exp")
     assert "invalid value encountered in sqrt" in lines[1]
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]  # none reached the terminal
+
+
+def test_progress_goes_only_to_a_terminal_unless_asked(capfd):
+    frames = render_glow(decay_values(30, 10.0, 0.5), size=12)
+    fitode.fit(frames, 0.1, eq=EQ, restarts=1, max_steps=20, window=6, light="linear")  # stderr here is no terminal
+    assert capfd.readouterr().err == ""
+    fitode.fit(frames, 0.1, eq=EQ, restarts=1, max_steps=20, window=6, light="linear", progress=True)  # asked
+    err = capfd.readouterr().err
+    assert "1 restart" in err and "%|" in err
