@@ -17,6 +17,7 @@ from typing import Any, Callable, Iterable, Mapping
 
 from fitode.errors import FitodeError
 from fitode.interrupted import Stopped, mark_report, reached
+from fitode.measurement import geometry
 from fitode.train.history import History  # torch-free, like everything this module imports at the top
 
 RUNS_DIR = "fitode-runs"
@@ -101,9 +102,11 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
 
     clip, t0 = read_clip(video, read, req.calibration, progress=progress)
     frames = api.as_frames(clip.frames)
-    plan = api.plan(req, frames, clip.dt, track=clip.track)
+    plan = api.plan(req, frames, clip.dt, track=clip.track, geometry=geometry(clip))
     clip, t0, plan = read_again(video, read, req, clip, t0, plan, progress=progress)
     frames = api.as_frames(clip.frames)
+    # what cannot be measured fails here, in one line, before the header and the output folder
+    measurement = api.measure(plan, frames)
     for line in rep.understanding_lines(ode, spec, analysis, clip, plan):
         say(line)
 
@@ -121,7 +124,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     try:
         if len(reqs) > 1:
             from fitode.compare import compare
-            comparison = compare(reqs, frames, clip.dt, track=clip.track, time_offset=t0, callback=recorder,
+            comparison = compare(reqs, frames, clip.dt, track=clip.track, geometry=geometry(clip), time_offset=t0,
+                                 callback=recorder,
                                  progress=progress, rate_std=rate_std(read.fps), log=say, first_plan=plan)
             chosen = comparison.candidates[comparison.chosen]
             result, req, plan = chosen.result, chosen.request, chosen.plan
@@ -132,7 +136,7 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
                                             options, t0), "created": report["created"]}
         else:
             result = api.execute(req, plan, frames, time_offset=t0, callback=recorder, progress=progress,
-                                 rate_std=rate_std(read.fps))
+                                 rate_std=rate_std(read.fps), measurement=measurement)
     except KeyboardInterrupt as exc:
         if not (isinstance(exc, Stopped) and len(reqs) == 1):  # no fit finished (of a comparison: not all)
             stage = "training" if len(reqs) == 1 else "comparison"
@@ -251,7 +255,7 @@ def level_in_detail(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
         # more rows can split what the shrunk frames saw as one line (the real bottle at 360 rows)
         return clip, t0, plan
     req = replace(req, observe=plan.observation)
-    return finer, t1, api.plan(req, frames, finer.dt, track=finer.track)
+    return finer, t1, api.plan(req, frames, finer.dt, track=finer.track, geometry=geometry(finer))
 
 
 def _observation_parts(plan):
@@ -275,7 +279,7 @@ def light_in_colour(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
         return clip, t0, plan
     clip, t0 = read_clip(video, replace(read, color=True, stride=clip.stride), req.calibration, progress=progress)
     req = replace(req, observe=plan.observation)
-    return clip, t0, api.plan(req, api.as_frames(clip.frames), clip.dt, track=clip.track)
+    return clip, t0, api.plan(req, api.as_frames(clip.frames), clip.dt, track=clip.track, geometry=geometry(clip))
 
 
 def source_measurement(result, clip) -> None:

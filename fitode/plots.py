@@ -100,9 +100,12 @@ def state_labels(result) -> list[str]:
     m = result.meta.get("measurement") or {}
     readings = m.get("states") or {}
     out = []
+    units = result.meta.get("units") or {}
     for s in result.states:
         how = readings.get(s)
-        if result.meta.get("physical_units"):
+        if units.get(s):
+            out.append(f"{s} ({units[s]}, {'up' if how == 'y' else 'measured'})")
+        elif result.meta.get("physical_units"):
             out.append(f"{s} (radians)" if how == "angle" else f"{s}\nmeasured, in its own units")
         elif result.meta.get("measured") and how:
             what = READING_WORDS.get(how, f"the {how}")

@@ -223,3 +223,16 @@ def test_help_lists_every_flag(capsys):
         assert flag in text, flag
     assert "--workers" not in text  # restarts train as one batched model, in this process
     assert "(default 4)" in text  # the restarts' default, read from fitode.train.config
+
+
+def test_what_cannot_be_measured_fails_before_the_header_and_the_folder(tmp_path, capsys):
+    """The bundled swing's pivot is far outside its small frames: the angle cannot be read, and that
+    is said in one line with status 2 before anything is printed or written."""
+    root = Path(__file__).resolve().parents[1] / "fitode" / "examples"
+    out = tmp_path / "out"
+    code = main([str(root / "pendulum.mp4"), "--eq-file", str(root / "pendulum.toml"), "--observe", "angle",
+                 "--out", str(out)])
+    captured = capsys.readouterr()
+    assert code == 2 and not out.exists()
+    assert "angle observation" in captured.err and len(captured.err.strip().splitlines()) == 1
+    assert "input:" not in captured.out + captured.err  # no header
