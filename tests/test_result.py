@@ -122,3 +122,20 @@ def test_progress_goes_only_to_a_terminal_unless_asked(capfd):
     fitode.fit(frames, 0.1, eq=EQ, restarts=1, max_steps=20, window=6, light="linear", progress=True)  # asked
     err = capfd.readouterr().err
     assert "1 restart" in err and "%|" in err
+
+
+def test_a_ctrl_c_after_training_returns_the_estimates_marked(monkeypatch):
+    import fitode.api
+
+    def interrupted(*_a, **_k):
+        raise KeyboardInterrupt  # as Ctrl-C lands while the intervals are made
+    monkeypatch.setattr(fitode.api, "_intervals", interrupted)
+    frames = render_glow(decay_values(30, 10.0, 0.5), size=12)
+    r = fitode.fit(frames, 0.1, eq=EQ, restarts=1, max_steps=20, window=6, light="linear", progress=False)
+    assert r.meta["stopped"] == {"stage": "intervals",
+                                 "undone": ["the 95% interval", "the checks behind the verdict"]}
+    assert r.parameters["gamma"].interval is None and np.isfinite(r.values["gamma"])
+    assert r.verdicts["gamma"]["verdict"] == "ambiguous"
+    assert r.summary().startswith("run interrupted: interrupted in the intervals")
+    with pytest.raises(ValueError, match="gamma has no interval: interrupted during the intervals"):
+        r.confidence_interval("gamma")
