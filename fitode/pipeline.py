@@ -222,6 +222,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     for line in (result.calibration or {}).get("lines", []):
         say(line)
     rep.complete_report(report, result, analysis, t0)
+    # the source video's frame numbers, as track.png labels them (repeats dropped, holes filled)
+    report["trajectory"]["frames"] = [int(f) for f in clip.frame_indices]
     if comparison is not None:
         report["comparison"] = comparison.to_dict()
         result.meta["comparison"] = report["comparison"]
@@ -389,7 +391,8 @@ def plot_track(path: Path, result, clip, video, t0: float) -> Path:
     return plots.plot_track(path, m, stills, np.asarray(result.time) + t0,
                             readings=readings(m, result.latent, result.rollout, result.states),
                             stretch=stretch, train_frames=result.train_frames,
-                            calibrated={s: (v["a"], v["b"]) for s, v in maps.items()})
+                            calibrated={s: (v["a"], v["b"]) for s, v in maps.items()},
+                            source_frames=[int(f) for f in clip.frame_indices])
 
 
 def _slow_motion_hint(result, clip) -> list[str]:
