@@ -181,12 +181,10 @@ class _Problem:
             if T < nc + 2:
                 raise ValueError("too few frames for one trajectory")
             self.index = None
-            self.pieces = _pieces(T, nc, segments)
-            if self.pieces is None:
-                self.extra.append(("start", xt[:nc].clone().requires_grad_(True)))
-            else:
-                firsts, self.length, self.seg, self.off = self.pieces
-                self.extra.append(("start", xt[firsts[:, None] + np.arange(nc)[None, :]].clone().requires_grad_(True)))
+            # the whole trajectory is one segment: the same residual, and its Jacobian one batched rollout
+            self.pieces = _pieces(T, nc, T if segments is None else segments)
+            firsts, self.length, self.seg, self.off = self.pieces
+            self.extra.append(("start", xt[firsts[:, None] + np.arange(nc)[None, :]].clone().requires_grad_(True)))
         else:
             n = min(int(windows), T)
             if n < nc + 1:
@@ -257,13 +255,10 @@ class _Problem:
     def difference(self, swapped):
         """prediction - target, in the target's units: (T, k) whole, (W, N - context, k) windows."""
         target = self.bent(swapped)
+        if self.index is None:
+            return self.piecewise(swapped)[0][0] - target
         own = {k: v for k, v in swapped.items() if k in self.models}
         s, b = self.gauge(swapped)
-        if self.index is None and self.pieces is not None:
-            return self.piecewise(swapped)[0][0] - target
-        if self.index is None:
-            state = self.roll(own, swapped["start"][None] * s + b, target.shape[0])[0]
-            return (state - b) / s - target
         nc = self.block.n_context
         xw = target[self.index]
         state = self.roll(own, xw[:, :nc] * s + b, xw.shape[1])
@@ -312,7 +307,7 @@ class _Problem:
         sizes = [p.numel() for _, p in named]
         parts = list(torch.split(values, sizes))
         swapped = {k: part.view_as(p) for (k, p), part in zip(named, parts)}
-        batched = self.pieces is not None and self.index is None
+        batched = self.index is None
         if batched:
             r0, columns = self._batched_columns(swapped, named, parts, torch.split(scale, sizes))
         else:
@@ -350,7 +345,7 @@ class _Problem:
         seg = self.seg.numpy()
         jj = np.repeat(np.arange(n - 1), nc * k)
         owners, bumps = [], []
-        for color in (0, 1):
+        for color in (0, 1) if n > 1 else (0,):
             mask = torch.as_tensor(np.arange(n) % 2 == color, dtype=start.dtype)[:, None]
             own_data = np.repeat(np.where(seg % 2 == color, seg, -1), k)
             own_join = np.where(jj % 2 == color, jj, jj + 1)
@@ -378,7 +373,7 @@ class _Problem:
         return r0, columns
 
     def residual(self, swapped):
-        if self.index is None and self.pieces is not None:
+        if self.index is None:
             return self.pieces_residual(swapped)[0]
         root = (1.0 / self.bent(swapped).var(dim=0).clamp_min(1e-24)).sqrt()  # every state counts equally
         data = self.difference(swapped) * root
@@ -394,13 +389,11 @@ class _Problem:
         return float(torch.mean(square)) ** 0.5
 
 
-def _pieces(T: int, nc: int, segments: int | None):
+def _pieces(T: int, nc: int, segments: int):
     """Where each segment starts, the frames each rolls out, and for every frame its segment and
-    its place in it; None without segments. One segment is the whole trajectory, its Jacobian
-    batched (trajectory._Problem.jacobian)."""
+    its place in it. One segment is the whole trajectory, its Jacobian batched
+    (trajectory._Problem.jacobian)."""
     import torch
-    if segments is None:
-        return None
     m = max(int(segments), nc + 1)
     n = max(1, -(-(T - nc) // m))  # the last segment starts at least `nc` frames before the end
     firsts = np.arange(n) * m
