@@ -49,7 +49,7 @@ CLIP = next((p / "shared" / "realvideos" / "pendulum_bob_L062.mp4" for p in Path
 SHORT = "throw 240 fps"  # the generated clip's name in --clip
 # the stages, each the functions whose calls it sums (module, attribute); the first match of a name is patched
 STAGES = {
-    "read and measure": [("fitode.pipeline", "_read"), ("fitode.api", "plan")],
+    "read and measure": [("fitode.pipeline", "_read"), ("fitode.api", "plan"), ("fitode.api", "measure")],
     "fit": [("fitode.api", "fit_frames")],
     "intervals": [("fitode.api", "_intervals")],
     "assessment": [("fitode.api", "_calibrate"), ("fitode.train.assess", "assess")],

@@ -3,7 +3,7 @@ trajectory, with standard errors.
 
 A fixed trajectory x (T, k), one column per state (a measured path, a calibrated latent, a frozen
 readout of the frames), is fitted by the physics block in float64 with L-BFGS and a strong-Wolfe
-line search. Two ways to cut it:
+line search, or Levenberg-Marquardt (solver "lm"). Two ways to cut it:
 
 - whole (windows=None): x is one trajectory of the equation; its starting frames and the
   constants are both free. What acts slowly (light damping, drag) shows over the whole clip.
@@ -22,8 +22,15 @@ segments (whole mode only): the one trajectory is rolled out as consecutive piec
 frames, each from starting frames of its own, its first frames rolled out tied to the end of the
 piece before by a stiff residual (multiple shooting): the same trajectory at the minimum, but each rollout is short, so a
 clip of thousands of frames costs what a few dozen do (the rollout is one Python step per frame).
-solver "lm" (Levenberg-Marquardt on the forward-mode Jacobian) takes a few dozen steps where
-L-BFGS takes hundreds; it suits the many starting frames of segments.
+A whole trajectory without segments is one segment. solver "lm" (Levenberg-Marquardt on the
+Jacobian by forward differences) takes a few dozen steps where L-BFGS takes hundreds; it suits the
+many starting frames of segments. It is bounded (ITERATIONS steps, TRIALS_PER_STEP trial rollouts
+a step in all) and says when it stopped at its bound (converged False; steps and rollouts counted).
+
+Where no gradient is asked for (Levenberg-Marquardt, the errors) the rollout is NumPy code
+generated from the same equation (codegen.compile_numpy, PhysicsBlock.rollout_numpy), and every
+column of the Jacobian the block can roll out (each constant, the segments' starting frames) is
+one copy of a single batched rollout; L-BFGS differentiates the torch rollout.
 
 bend: x is first read through a perspective (one-dimensional homography) about its middle m,
 x -> m + (x - m) / (1 + c (x - m)), with c fitted too (kept so that the pole stays outside the
