@@ -9,7 +9,7 @@ from typing import Iterable, Mapping
 import cv2
 import numpy as np
 
-from fitode.video.sources import open_source
+from fitode.video.sources import ArraySource, open_source
 
 
 KEPT = 16  # source frames the read keeps for pictures, spread over the clip (memory flat in its length)
@@ -55,6 +55,8 @@ def source_stills(path: str | Path, indices: Iterable[int], max_side: int = MAX_
         return out
     src = open_source(Path(path))
     try:
+        if isinstance(src, ArraySource):  # an array's value scale is read from its frames (the whole of it here)
+            src.calibrate(0, src.arr.shape[0])
         i = 0
         while i <= wanted[-1] and src.grab():
             if i in wanted:
