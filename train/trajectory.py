@@ -40,7 +40,6 @@ measured against the bent x's own spread, so that a bend cannot win by shrinking
 from __future__ import annotations
 
 import math
-from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -95,17 +94,11 @@ def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Map
                     iterations, gauge, segments, solver, keep)
 
 
-@contextmanager
 def _one_thread():
     """torch on one intra-op thread while a trajectory is fitted: its tensors hold a few hundred
     numbers, and two threads on a busy machine made the fit of a 39-frame path 3.7x slower."""
-    import torch
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
+    from .threads import torch_threads
+    return torch_threads(1)
 
 
 def _fit(system, params, x, dt, start, integrator, substeps, windows, bend, max_windows, robust, iterations, gauge,
