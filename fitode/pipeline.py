@@ -369,14 +369,22 @@ def plot_track(path: Path, result, clip, video, t0: float) -> Path:
     stretch = result.meta.get("stretch")
     lo, hi = (int(stretch["start_frame"]), int(stretch["end_frame"])) if stretch else (0, n)
     lo, hi = max(0, min(lo, n - 1)), max(1, min(hi, n))
-    idx = sorted({int(i) for i in np.linspace(lo, hi - 1, min(STILLS, hi - lo)).round()})
+    from fitode.video.stills import kept_stills, source_stills
+    want = min(STILLS, hi - lo)
+    # the frames the read kept at full resolution, where the stretch holds enough of them: no second decode
+    have = [i for i in range(lo, hi) if int(clip.frame_indices[i]) in (clip.stills or {})]
+    if len(have) >= min(want, 3):
+        idx = [have[j] for j in sorted({int(j) for j in np.linspace(0, len(have) - 1, min(want, len(have))).round()})]
+    else:
+        idx = sorted({int(i) for i in np.linspace(lo, hi - 1, want).round()})
     source = [int(clip.frame_indices[i]) for i in idx]
     h, w = clip.source_size
-    try:
-        from fitode.video.stills import source_stills
-        got = source_stills(video, source)
-    except Exception:  # noqa: BLE001 - a picture falls back to the frames the fit had
-        got = {}
+    got = kept_stills(clip.stills, source)
+    if len(got) < len(source):
+        try:
+            got = source_stills(video, source)
+        except Exception:  # noqa: BLE001 - a picture falls back to the frames the fit had
+            got = {}
     box = geometry(clip).box
     stills = {}
     for i, s in zip(idx, source):
