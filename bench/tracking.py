@@ -111,7 +111,7 @@ def scene_hand(seed: int) -> dict[str, Any]:
                      (hx + k * 9 - 5, hy - 8, hx + k * 9 + 5, hy + 14))
 
     frames = _film(_wall(rng, h, w), draw, n, seed)
-    keep = t >= release  # the fall: the hand covers part of the ball before it
+    keep = (t >= release) & (t <= release + fall)  # the fall
     return {"frames": frames, "truth": truth, "dt": 1 / fps, "kind": "fall", "axis": 1, "fit": keep,
             "constant": ("g_px", g)}
 
@@ -208,13 +208,13 @@ def track_change(frames: np.ndarray) -> np.ndarray:
     return measure(frames)[0]
 
 
-def track_object(frames: np.ndarray, seed: np.ndarray | None = None) -> np.ndarray:
-    """The object tracker seeded by the change detector."""
-    from fitode.video.follow import follow_object
+def track_object(frames: np.ndarray) -> np.ndarray:
+    """The object tracker seeded by the change detector's paths."""
+    from fitode.video.follow import follow_best
+    from fitode.video.track import MAX_OBJECTS, measure_paths
 
-    seed = track_change(frames) if seed is None else seed
-    found = follow_object(frames, seed)
-    return np.full_like(seed, np.nan) if found is None else found.xy
+    found = follow_best(frames, measure_paths(frames, MAX_OBJECTS)[0])
+    return np.full((len(frames), 2), np.nan) if found is None else found.xy
 
 
 def errors(path: np.ndarray, truth: np.ndarray, axis: int | None = None, offset: bool = False) -> dict[str, Any]:
@@ -254,7 +254,7 @@ def run_scene(name: str, seed: int) -> list[dict[str, Any]]:
     axis = 1 if sc["kind"] == "drain" else None  # a level is its row
     rows = []
     seed_path = track_change(sc["frames"])
-    for tracker, path in (("change", seed_path), ("object", track_object(sc["frames"], seed_path))):
+    for tracker, path in (("change", seed_path), ("object", track_object(sc["frames"]))):
         e = errors(path, truth, axis)
         c = constant(sc, path)
         rows.append({"source": f"{name} (seed {seed})", "tracker": tracker, **e,
@@ -275,7 +275,7 @@ def run_real(name: str, folder: Path) -> list[dict[str, Any]]:
     del frames
     rows = []
     seed_path = track_change(gray)
-    for tracker, p in (("change", seed_path), ("object", track_object(gray, seed_path))):
+    for tracker, p in (("change", seed_path), ("object", track_object(gray))):
         e = errors(p, truth, offset=True)
         raw = errors(p, truth)
         rows.append({"source": name, "tracker": tracker, **e, "raw_rms": raw["rms"], "limit": 1.0,
