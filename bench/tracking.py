@@ -12,12 +12,14 @@ fitode's scenes: blur, noise, sRGB, JPEG; 320x240 unless said):
     small   a ball 2 pixels across on a pendulum's arc (30 fps, 6 s)
 
 and the shared real pendulums and the drop (../shared/realvideos) against bench/realclips.py's
-colour tracker (its functions: the HSV blob's centroid). The colour tracker sees only a part of
+colour tracker (its functions: the HSV blob's centroid; the drop on the frames of its fall, from
+the release to the floor, as realclips.py fits it). The colour tracker sees only a part of
 some objects (the bob's blue lower half), so on the real clips the table gives the RMS difference
 after their median offset is taken out, on the frames both follow, beside the raw one.
 
-Each track is read by the change detector (fitode.video.track.measure, the reader's until now) and
-by the object tracker (fitode.video.follow) seeded by it; the table gives the RMS error and the
+Each track is read by the change detector (fitode.video.track.measure, the reader's until now), by
+the object tracker (fitode.video.follow) seeded by it, and as the reader now takes it (the
+detector's where the object tracker agrees with it, fitode.video.track.choose); the table gives the RMS error and the
 largest, the frames each could not place, and the constant the track leads to (a damped sine's
 w0^2 for the oscillations, the fall's g in px/s^2, Torricelli's k in px^0.5/s), fitted to the
 track as realclips.py fits its own.
@@ -208,13 +210,16 @@ def track_change(frames: np.ndarray) -> np.ndarray:
     return measure(frames)[0]
 
 
-def track_object(frames: np.ndarray) -> np.ndarray:
-    """The object tracker seeded by the change detector's paths."""
+def track_object(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
+    """The object tracker seeded by the change detector's paths, and the reader's choice between
+    the two (fitode.video.track.choose) with its note."""
     from fitode.video.follow import follow_best
-    from fitode.video.track import MAX_OBJECTS, measure_paths
+    from fitode.video.track import MAX_OBJECTS, choose, measure_paths
 
-    found = follow_best(frames, measure_paths(frames, MAX_OBJECTS)[0])
-    return np.full((len(frames), 2), np.nan) if found is None else found.xy
+    paths = measure_paths(frames, MAX_OBJECTS)[0]
+    found = follow_best(frames, paths)
+    chosen, how = choose(frames, paths, found) if found is not None else (paths[0], "no object")
+    return (np.full((len(frames), 2), np.nan) if found is None else found.xy), chosen, how
 
 
 def errors(path: np.ndarray, truth: np.ndarray, axis: int | None = None, offset: bool = False) -> dict[str, Any]:
@@ -253,11 +258,11 @@ def run_scene(name: str, seed: int) -> list[dict[str, Any]]:
     label, value = sc["constant"]
     axis = 1 if sc["kind"] == "drain" else None  # a level is its row
     rows = []
-    seed_path = track_change(sc["frames"])
-    for tracker, path in (("change", seed_path), ("object", track_object(sc["frames"]))):
+    obj, chosen, how = track_object(sc["frames"])
+    for tracker, path in (("change", track_change(sc["frames"])), ("object", obj), ("reader", chosen)):
         e = errors(path, truth, axis)
         c = constant(sc, path)
-        rows.append({"source": f"{name} (seed {seed})", "tracker": tracker, **e,
+        rows.append({"source": f"{name} (seed {seed})", "tracker": tracker, **e, "how": how if tracker == "reader" else "",
                      "constant": label, "value": c, "truth": value, "off": (c - value) / value,
                      "limit": LIMIT.get(name, 0.3)})
     return rows
@@ -268,17 +273,26 @@ def run_real(name: str, folder: Path) -> list[dict[str, Any]]:
 
     path = folder / name
     clip = rc.CLIPS[name]
-    frames = list(rc.read_frames(path))
-    colour = rc.track_colour(frames, clip.hsv)
+    if clip.kind == "freefall":  # the fall, from the release to the floor, as realclips.py fits it
+        m = rc.measure_freefall(path, clip)
+        frames, colour = m["frames"], m["track"]
+        keep = np.zeros(len(frames), bool)
+        keep[m["fit"]["start_frame"]:m["fit"]["end_frame"] + 1] = True
+    else:
+        frames = list(rc.read_frames(path))
+        colour = rc.track_colour(frames, clip.hsv)
+        keep = np.ones(len(frames), bool)
     truth = np.stack([colour["x"], colour["y"]], axis=1)
+    truth[~keep] = np.nan
     gray = np.stack([cv2.cvtColor(f, cv2.COLOR_BGR2GRAY) for f in frames])
     del frames
     rows = []
-    seed_path = track_change(gray)
-    for tracker, p in (("change", seed_path), ("object", track_object(gray))):
+    obj, chosen, how = track_object(gray)
+    for tracker, p in (("change", track_change(gray)), ("object", obj), ("reader", chosen)):
         e = errors(p, truth, offset=True)
         raw = errors(p, truth)
         rows.append({"source": name, "tracker": tracker, **e, "raw_rms": raw["rms"], "limit": 1.0,
+                     "how": how if tracker == "reader" else "",
                      "constant": "", "value": math.nan, "truth": math.nan, "off": math.nan})
     return rows
 

@@ -35,6 +35,7 @@ GOOD = 0.85      # ... well-matched: correlation at least this
 LOST = 8          # frames lost after which the whole frame is searched
 STEPS = 8         # Gauss-Newton steps of the sub-pixel refinement
 SEED_FRAMES = 40  # frames the seed is chosen among
+PEAKS = 1         # the correlation's peaks refined where the best is not a good match
 MARGIN = 2        # pixels of background kept around the object's mask in the template
 
 
@@ -51,6 +52,7 @@ class Followed:
     seed: int
     area: float
     note: str
+    rigid: np.ndarray | None = None  # (T,) the score against the seed frame's template (how much the object keeps its look)
 
     @property
     def hidden(self) -> np.ndarray:
@@ -76,6 +78,7 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
     xy = np.full((t_all, 2), np.nan)
     sigma = np.full(t_all, np.nan)
     score = np.full(t_all, np.nan)
+    rigid = np.full(t_all, np.nan)  # the score against the seed's template, not the one that follows the object
     size = math.sqrt(area)
     inner = weight >= 1.0
     for way in (1, -1):
@@ -112,6 +115,7 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
                 lost += 1
                 continue
             xy[t], sigma[t], score[t] = place, se, corr
+            rigid[t] = _score(patch, template, weight)
             last = (last + [place])[-2:]
             lost, angle = 0, turned
             # the object's own pixels follow its look (a label that goes round, the light); the ring
@@ -124,15 +128,15 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
     seen = np.isfinite(xy[:, 0])
     note = (f"the object followed by its appearance (a template of {area:.0f} pixels cut from frame {t0}, "
             f"hidden in {int((~seen).sum())} of {t_all} frames)")
-    return Followed(xy, sigma, score, t0, float(area), note)
+    return Followed(xy, sigma, score, t0, float(area), note, rigid)
 
 
 def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
     """Of the change detector's paths (n, T, 2; the strongest first), the object followed best:
     among those that move and whose template is found in at least half the frames (else among
-    all), the one that matches its template best (the median score). The strongest change is not
-    always the object: legs walking behind a can on a spring change more; they also change their
-    shape as they go, and leave the view."""
+    all), the one that keeps its look best (the median score against the seed frame's template).
+    The strongest change is not always the object: legs walking behind a can on a spring change
+    more; they also change their shape as they go."""
     sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), 48)).round().astype(int))
     background = np.median(stack[sample], axis=0).round().astype(np.uint8)
     noise = float(1.4826 * np.median(np.abs(stack[sample[::6], ::2, ::2].astype(np.int16)
@@ -147,7 +151,7 @@ def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
         seen = np.isfinite(found.xy[:, 0])
         if seen.sum() < 3 or float(np.ptp(found.xy[seen], axis=0).max()) < 2.0:
             continue
-        key = (bool(seen.mean() >= 0.5), float(np.median(found.score[seen])))
+        key = (bool(seen.mean() >= 0.5), float(np.nanmedian(found.rigid[seen])))
         if rank is None or key > rank:
             best, rank = found, key
     return best
@@ -318,10 +322,22 @@ def _find(frame, template, weight, ref, guess, reach, angle=0.0):
     wm = _turned(weight, ref, angle) if abs(angle) > 0.02 else weight
     corr = cv2.matchTemplate(window, tm, cv2.TM_CCORR_NORMED if _flat(tm) else cv2.TM_CCOEFF_NORMED, mask=wm)
     corr = np.nan_to_num(corr, nan=-1.0, posinf=-1.0, neginf=-1.0)
-    j = int(np.argmax(corr))
-    py, px = divmod(j, corr.shape[1])
-    place = np.array([x0 + px, y0 + py], dtype=np.float64) + ref
-    return _refine(frame, template, weight, ref, place, angle)
+    # the correlation's best peak is refined and scored; where that is poor, the next best peaks
+    # too (a dark leg correlates with a can's edges better than the can half hidden behind it)
+    best = None
+    spread = max(3, min(th, tw) // 2)
+    for _ in range(PEAKS):
+        j = int(np.argmax(corr))
+        py, px = divmod(j, corr.shape[1])
+        if corr[py, px] <= -1.0:
+            break
+        found = _refine(frame, template, weight, ref, np.array([x0 + px, y0 + py], dtype=np.float64) + ref, angle)
+        if found is not None and (best is None or found[2] > best[2]):
+            best = found
+        if best is not None and best[2] >= GOOD:
+            break
+        corr[max(py - spread, 0):py + spread + 1, max(px - spread, 0):px + spread + 1] = -1.0
+    return best
 
 
 def _turned(image, ref, angle):
@@ -407,7 +423,7 @@ def _score(patch, template, weight) -> float:
     design = np.column_stack([t_in, np.ones_like(t_in)])
     (gain, offset), *_ = np.linalg.lstsq(design, p_in, rcond=None)
     # the light changes the object's look a little; a flat patch (gain 0) is not the object
-    gain = float(np.clip(gain, 0.5, 1.5))
+    gain = float(np.clip(gain, 0.75, 1.33))
     offset = float(np.median(p_in - gain * t_in))
     # the object's inner pixels and the outer ring around it: legs behind the can change a part
     # of the ring, a dark patch that is not the can changes all of it

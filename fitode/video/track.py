@@ -97,17 +97,18 @@ SEEN = 0.5  # ... and is not taken where it places the object in fewer than this
 AGREE_PX = 1.0  # ... within this many pixels (or 3 of its standard errors) of their median offset
 
 
-def choose(stack: np.ndarray, paths: np.ndarray) -> tuple[np.ndarray, str]:
+def choose(stack: np.ndarray, paths: np.ndarray, found=None) -> tuple[np.ndarray, str]:
     """The object's path (T, 2) and how it was made: the change detector's strongest path where
     the object tracker (fitode.video.follow, seeded by the detector's paths) agrees with it, up to
     a constant offset, in AGREE of the frames both place (the detector's centroid is at the limit
     on a clean scene: the real pendulums), or where the object tracker places the object in fewer
     than SEEN of the frames (a tiny object, read between pixels); else the object tracker's,
-    hidden frames NaN (something else changes more than the object: legs walking behind it)."""
+    hidden frames NaN (something else changes more than the object: legs walking behind it).
+    found: the object tracker's result (fitode.video.follow.follow_best) where the caller has it."""
     from fitode.video.follow import follow_best
 
     change = "the change from the static scene"
-    found = follow_best(stack, paths)
+    found = follow_best(stack, paths) if found is None else found
     if found is None:
         return paths[0], f"{change} (the object tracker found nothing to follow)"
     seen = float(np.isfinite(found.xy[:, 0]).mean())
