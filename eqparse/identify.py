@@ -162,8 +162,9 @@ def analyse(system: OdeSystem, *, seed: int = _SEED) -> IdentifiabilityReport:
             scale, why = "dependent", "the scale analysis could not evaluate the equation"
         elif name in full.dependent:
             scale = "dependent"
-            why = (f"its value changes when {_moved(full, name, order)}, so it comes out in the latent's "
-                   "units (calibrate the latent or fix it)")
+            why = (f"its value changes when {_moved(full, name, order)}, so it comes out in the units the "
+                   "state is measured in (source pixels, metres with --scale; a free encoder's arbitrary "
+                   "units unless calibrated)")
         elif not (touched & full.pinned):
             scale = "free"
             why = f"its value does not change when {_are(sorted(touched, key=order))} rescaled"

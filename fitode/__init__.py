@@ -15,7 +15,7 @@ from fitode.fitting import fit  # noqa: E402 - torch-free; imports fitode.api wh
 
 
 def __getattr__(name):
-    if name == "FitResult":
-        from fitode.train.result import FitResult
-        return FitResult
+    if name in ("Result", "FitResult"):  # FitResult: the name before Result had its verbs
+        from fitode.result import Result
+        return Result
     raise AttributeError(name)

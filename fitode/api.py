@@ -46,6 +46,7 @@ class FitRequest:
     calibration: tuple = ()
     spec: Any = None
     equation: str | None = None  # the equation as the user typed it, where it is one of several candidates
+    scale: Any = None  # a scale stick (fitode.scale.ScaleStick): lengths in metres; None: in source pixels
 
 
 def request(*, eq: str | None = None, system: str | OdeSystem | None = None, eq_file: str | None = None,
@@ -53,7 +54,7 @@ def request(*, eq: str | None = None, system: str | OdeSystem | None = None, eq_
             init: Mapping[str, float] | None = None, params: Mapping[str, ParamSpec] | None = None,
             prior: tuple[float, float] | None = None, train_fraction: float = 1.0,
             observe: str | ObservationModel | None = None, calibrate: str | None = None,
-            candidate: int | None = None, **options) -> FitRequest:
+            scale=None, candidate: int | None = None, **options) -> FitRequest:
     """Every check of a fit request that needs no frames, in one place (the API, the pipeline and
     batch all come through here): the equation, the training options, the prior, init's names,
     train_fraction, the observation's name and the calibration's text. candidate: which of several
@@ -86,44 +87,74 @@ def request(*, eq: str | None = None, system: str | OdeSystem | None = None, eq_
     if calibrate is not None:
         from fitode.calibrate import parse_calibration
         points = tuple(parse_calibration(calibrate, ode.states))
+    stick = None
+    if scale is not None:
+        from fitode.scale import parse_scale
+        stick = parse_scale(scale)
     return FitRequest(system=ode, params=dict(spec_params), config=config, init=dict(init) if init else None,
                       train_fraction=float(train_fraction), observe=observe, observe_source=source,
-                      calibration=points, spec=spec)
+                      calibration=points, spec=spec, scale=stick)
 
 
-def plan(req: FitRequest, frames: torch.Tensor, dt: float, track=None) -> FitPlan:
-    """Every choice of the fit resolved on its frames (float (T, C, H, W), as_frames) and the
-    reader's track of them (fitode.train.observe.track.Track, or None)."""
+def plan(req: FitRequest, frames: torch.Tensor, dt: float, track=None, geometry=None) -> FitPlan:
+    """Every choice of the fit resolved on its frames (float (T, C, H, W), as_frames), the
+    reader's track of them (fitode.train.observe.track.Track, or None) and where they lie in the
+    source (fitode.measurement.FrameGeometry, or None: frames given as they are, their pixels the
+    source's), which with the request's scale stick says how a measured length reads."""
+    from fitode.train.observe.base import Lengths
+
     if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not (dt > 0 and np.isfinite(dt)):
         raise ConfigError(f"dt must be a positive number of seconds, got {dt!r}")
     n_train = max(int(round(req.train_fraction * frames.shape[0])), 1)
+    stick = req.scale
+    if stick is not None and geometry is not None:
+        stick.check_inside(geometry.source_size)
+    lengths = Lengths(geometry.scale if geometry is not None else (1.0, 1.0),
+                      stick.metres_per_px if stick is not None else None,
+                      stick.relative_std if stick is not None else 0.0)
     return make_plan(req.system, req.params, frames, float(dt), req.config, observe=req.observe, n_train=n_train,
-                     init=req.init, observe_source=req.observe_source, track=track)
+                     init=req.init, observe_source=req.observe_source, track=track, lengths=lengths)
+
+
+def measure(fit_plan: FitPlan, frames: torch.Tensor):
+    """The measurement stage (fitode.train.measure.measure): what the plan's observation reads off
+    the frames, or its one-line error, before any fit or output."""
+    from fitode.train.measure import measure as measure_frames
+    return measure_frames(frames, fit_plan)
 
 
 def execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_offset: float = 0.0,
             callback: Callback | None = None, progress: bool = False, rate_std: float = 0.0,
-            stretch: tuple[int, int] | None = None) -> FitResult:
+            stretch: tuple[int, int] | None = None, measurement=None) -> FitResult:
     """Train the plan, calibrate when asked (not after an interruption: unfinished training gives
     no latent worth a scale), make every constant's interval and assess: the FitResult with its
     intervals, verdicts and warnings. rate_std: the relative uncertainty of the frame rate (0 for
     a dt or --fps the user gave; fitode.train.interval.RATE_CONTAINER_STD for a container's).
-    stretch: the frames a measured path is fitted on, as fitode.train.trainer.fit_frames takes it."""
+    stretch: the frames a measured path is fitted on, as fitode.train.trainer.fit_frames takes it;
+    measurement: the plan's Measurement (fitode.train.measure), made by `measure` before."""
     from fitode.eqparse import analyse
     from fitode.train.assess import assess
 
-    result = fit_frames(frames, fit_plan, callback=callback, progress=progress, stretch=stretch)
+    from fitode.interrupted import fitted, stage
+
+    # an interruption after training keeps the estimates: fitode.interrupted.Stopped carries them
+    calibrating = bool(req.calibration)
+    result = fitted(fit_frames, frames, fit_plan, callback=callback, progress=progress, stretch=stretch,
+                    calibrating=calibrating, measurement=measurement)
     try:
         analysis = analyse(req.system)
     except Exception:  # noqa: BLE001 - the analysis is advice; sympy can fail on unusual equations
         analysis = None
     calibrated, extra = (), []
     if req.calibration and not result.meta.get("interrupted"):
-        calibrated, extra = _calibrate(result, req, analysis, time_offset)
+        with stage(result, "calibration", calibrating=calibrating):
+            calibrated, extra = _calibrate(result, req, analysis, time_offset)
     elif req.calibration:
         result.meta["calibration_skipped"] = "interrupted"
-    _intervals(result, req, rate_std)
-    assess(result, analysis, calibrated=calibrated, extra=extra).apply(result)
+    with stage(result, "intervals"):
+        _intervals(result, req, rate_std)
+    with stage(result, "assessment"):
+        assess(result, analysis, calibrated=calibrated, extra=extra).apply(result)
     result.warnings[:0] = list(req.system.hints)  # the parser's advice stays with the numbers it concerns
     return result
 
@@ -135,12 +166,33 @@ def _intervals(result: FitResult, req: FitRequest, rate_std: float) -> None:
 
     constants = (result.calibration or {}).get("constants", {})
     relative = {n: float(c.get("relative_std", 0.0)) for n, c in constants.items() if c.get("converted")}
+    for name, share in _scale_shares(result, req.system).items():
+        relative[name] = math.hypot(relative.get(name, 0.0), share)
     intervals, boot = result_intervals(result, req.system, req.params, rate_std=rate_std, calibration=relative,
                                        seed=req.config.seed)
     for name, iv in intervals.items():
         result.parameters[name].interval = [iv.low, iv.high]
     result.checks["interval"] = None if boot is None else {
         **boot.to_dict(), "rate_std": rate_std, "shares": {n: iv.shares for n, iv in intervals.items()}}
+
+
+def _scale_shares(result: FitResult, system: OdeSystem) -> dict[str, float]:
+    """The relative standard deviation each constant takes from the scale stick's: a constant that
+    goes as length**p (g: p = 1, k in h' = -k*sqrt(h): p = 1/2) takes p times the stick's."""
+    length = result.meta.get("length") or {}
+    rel = float(length.get("relative_std") or 0.0)
+    units = result.meta.get("units") or {}
+    if not rel or not units:
+        return {}
+    from fitode.eqparse.identify import scale_exponents
+
+    out = {}
+    for name, powers in scale_exponents(system).items():
+        if powers is not None:
+            p = sum(v for s, v in powers.items() if s in units)
+            if p:
+                out[name] = abs(p) * rel
+    return out
 
 
 def _calibrate(result: FitResult, req: FitRequest, analysis, time_offset: float):

@@ -27,7 +27,12 @@ VERBS = {
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse that reports bad flags in one line with status 2 (argparse prints usage too)."""
+    """argparse that reports bad flags in one line with status 2 (argparse prints usage too), and
+    takes no abbreviation: `--restart 2` is not silently `--restarts 2`, it gets the did-you-mean."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)  # the sub-verbs' parsers (add_parser) too
+        super().__init__(*args, **kwargs)
 
     def parse_known_args(self, args=None, namespace=None):
         # before argparse: it reports a missing required flag first, so `--sytem pendulum`
@@ -49,9 +54,8 @@ class _Parser(argparse.ArgumentParser):
             flag = arg.split("=", 1)[0]
             if not re.fullmatch(r"--[A-Za-z][\w-]*", flag) or flag in known:
                 continue
-            if len([k for k in known if k.startswith(flag)]) == 1:  # argparse takes a unique abbreviation
-                continue
-            close = difflib.get_close_matches(flag, known, n=1, cutoff=0.6)
+            longer = [k for k in known if k.startswith(flag)]
+            close = longer[:1] if len(longer) == 1 else difflib.get_close_matches(flag, known, n=1, cutoff=0.6)
             hint = f" (did you mean {close[0]}?)" if close else f" (see {self.prog} -h)"
             self.error(f"unknown flag {flag}{hint}")
 
@@ -103,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
 @contextlib.contextmanager
 def _sigterm_as_interrupt():
     """SIGTERM (a scheduler's or `kill`'s stop) raises KeyboardInterrupt in the main thread, so it
-    takes Ctrl-C's path: a run leaves its folder marked incomplete, a batch stops its workers and
+    takes Ctrl-C's path: a run leaves its folder marked interrupted, a batch stops its workers and
     writes a consistent summary. The list it yields is non-empty once SIGTERM arrived.
     """
     term: list[int] = []

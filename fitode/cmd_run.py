@@ -27,6 +27,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     eq.add_argument("--calibrate", metavar="TEXT",
                     help="known values of a state, \"h(0)=0.07; h(25)=0.01\" (seconds of the video), "
                          "to report scale-dependent constants in physical units")
+    eq.add_argument("--scale", metavar="X1,Y1,X2,Y2=D",
+                    help="two points of the source frame (pixels; x right, y down, as --roi) that lie D metres "
+                         "apart in the plane of the motion (D±U with its uncertainty; each end ±1 pixel): "
+                         "positions in metres, y up, and constants in SI units (default: source pixels)")
 
     tr = add_training_arguments(p)
     from fitode.train.observe.catalog import help_text
@@ -70,7 +74,8 @@ def run(args: argparse.Namespace) -> int:
         outcome = _run(args, const, init, say)
     except RunInterrupted as stop:  # the folder is written; show what the restarts had reached
         say(format_table(stop.outcome.report))
-        say(f"results (incomplete): {stop.outcome.out_dir}")
+        say(f"results (interrupted during the {stop.outcome.report.get('stage', 'training')}): "
+            f"{stop.outcome.out_dir}")
         raise
     say(format_table(outcome.report))
     if not args.quiet:
@@ -85,7 +90,7 @@ def _run(args, const, init, say):
     from fitode.pipeline import ReadOptions, run_video
     from fitode.video import video_kwargs
     fit = dict(eq=args.eq, eq_file=args.eq_file, system=args.system, const=const, free=tuple(args.free),
-               init=init or None, prior=args.prior, calibrate=args.calibrate, observe=args.observe,
+               init=init or None, prior=args.prior, calibrate=args.calibrate, scale=args.scale, observe=args.observe,
                **training_options(args))
     if args.train_fraction is not None:
         fit["train_fraction"] = args.train_fraction

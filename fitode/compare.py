@@ -91,13 +91,14 @@ class Comparison:
                 "stretch": list(self.stretch), "blocks": self.blocks, "notes": list(self.notes)}
 
 
-def compare(requests: Sequence, frames, dt: float, *, track=None, time_offset: float = 0.0, callback=None,
+def compare(requests: Sequence, frames, dt: float, *, track=None, geometry=None, time_offset: float = 0.0, callback=None,
             progress: bool = False, rate_std: float = 0.0, blocks: int | None = None,
             log: Callable[[str], None] | None = None, first_plan=None) -> Comparison:
     """Fit every candidate (fitode.api.requests: one FitRequest per equation, `equation` set as
     typed by requests' caller) on the frames (T, C, H, W) dt apart, cross-validate each along
     time and rank them (module docstring). first_plan: the first candidate's plan where the
-    caller made it already. FitodeError (one line) where the comparison cannot be made."""
+    caller made it already; track and geometry: as fitode.api.plan takes them. FitodeError (one
+    line) where the comparison cannot be made."""
     from fitode import api
     from fitode.train.crossval import BLOCKS, rank
 
@@ -105,7 +106,7 @@ def compare(requests: Sequence, frames, dt: float, *, track=None, time_offset: f
     blocks = BLOCKS if blocks is None else int(blocks)
     cands = [CandidateFit(equation=getattr(r, "equation", None) or r.system.text, request=r) for r in requests]
     first = cands[0]
-    first.plan = first_plan or api.plan(first.request, frames, dt, track=track)
+    first.plan = first_plan or api.plan(first.request, frames, dt, track=track, geometry=geometry)
     if not first.plan.observation.measured:
         raise FitodeError(FREE_LATENT)
     options = dict(time_offset=time_offset, callback=callback, progress=progress, rate_std=rate_std)
@@ -120,7 +121,7 @@ def compare(requests: Sequence, frames, dt: float, *, track=None, time_offset: f
         try:
             observe = _observe_like(first.plan.observation, first.request.system.states, c.request.system.states)
             c.request = replace(c.request, observe=observe, observe_source="the first candidate's, for the comparison")
-            c.plan = api.plan(c.request, frames, dt, track=track)
+            c.plan = api.plan(c.request, frames, dt, track=track, geometry=geometry)
         except FitodeError as exc:
             c.error = str(exc)
             continue

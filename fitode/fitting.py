@@ -14,7 +14,7 @@ from fitode.errors import ConfigError
 if TYPE_CHECKING:
     from fitode.eqparse import OdeSystem, ParamSpec
     from fitode.train.observe import ObservationModel
-    from fitode.train.result import FitResult
+    from fitode.result import Result
     from fitode.train.trainer import Callback
 
 # read_video's options: they apply to a video path, not to frames given as an array
@@ -26,11 +26,11 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
         init: Mapping[str, float] | None = None, params: Mapping[str, ParamSpec] | None = None,
         prior: tuple[float, float] | None = None, train_fraction: float = 1.0,
         observe: str | Mapping[str, str] | ObservationModel | None = None, calibrate: str | None = None,
-        fps: float | None = None, start: float | None = None, end: float | None = None,
+        scale=None, fps: float | None = None, start: float | None = None, end: float | None = None,
         roi: tuple[int, int, int, int] | str | None = None, size: tuple[int, int] | str | None = None,
         color: bool = False, stride: int | str | None = None, mask: str | None = None,
         time_offset: float = 0.0, callback: Callback | None = None, progress: bool = True,
-        **options: Any) -> FitResult:
+        **options: Any) -> Result:
     """Estimate the learnable constants of an equation from a video or a frame sequence.
 
     frames: a video path (file, folder of images or .npy, as `fitode VIDEO` takes), read with
@@ -51,6 +51,10 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
         ...), one per state ("x=position;y=size"), or an ObservationModel instance.
     calibrate: known values of states, "h(0)=0.07; h(25)=0.01" (seconds of the video): scale-
         dependent constants come back in physical units.
+    scale: a scale stick ((x1, y1), (x2, y2), D): two points of the source frame (pixels, x right,
+        y down) D metres apart (D a number, (D, U) or "D±U"); or --scale's text. With it a measured
+        position, level or size is in metres (y up) and its constants in SI units, their intervals
+        carrying the stick's uncertainty; without it, in source pixels (px/s^2).
     fps, start, end, roi, size, color, stride, mask: for a path only, as --fps, --start, --end,
         --roi (x, y, w, h or "X,Y,W,H"), --size ((H, W) or "WxH"), --color, --stride (K or
         "auto", the default) and --mask; a path with these options fits the same frames, and
@@ -66,7 +70,8 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
     if (start is not None or end is not None) and "stretch" not in options:
         options["stretch"] = False  # the user chose the frames: no stretch is looked for
     reqs = api.requests(eq=eq, system=system, eq_file=eq_file, const=const, free=free, init=init, params=params,
-                        prior=prior, train_fraction=train_fraction, observe=observe, calibrate=calibrate, **options)
+                        prior=prior, train_fraction=train_fraction, observe=observe, calibrate=calibrate, scale=scale,
+                        **options)
     req = reqs[0]
     video = dict(fps=fps, start=start, end=end, roi=roi, size=size, color=color, stride=stride, mask=mask)
     clip = None
@@ -83,25 +88,33 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
     from fitode.pipeline import rate_std
     rate = rate_std(fps) if clip is not None else 0.0  # an array's dt is the user's
     track = None if clip is None else clip.track
-    plan = api.plan(req, x, dt, track=track)
+    from fitode.measurement import geometry
+    where = None if clip is None else geometry(clip)
+    plan = api.plan(req, x, dt, track=track, geometry=where)
     if clip is not None:  # as `fitode VIDEO` reads it: light from sRGB in colour, a level in more detail
         from fitode.pipeline import read_again
         clip, time_offset, plan = read_again(frames_path, _read_options(video), req, clip, time_offset, plan,
                                              progress=progress)
-        x, track = api.as_frames(clip.frames), clip.track
+        x, track, where = api.as_frames(clip.frames), clip.track, geometry(clip)
+    measurement = api.measure(plan, x)  # what cannot be measured fails before any fit
     if len(reqs) > 1:
         from fitode.compare import compare
-        comparison = compare(reqs, x, dt, track=track, time_offset=time_offset, callback=callback, progress=progress,
+        comparison = compare(reqs, x, dt, track=track, geometry=where, time_offset=time_offset, callback=callback, progress=progress,
                              rate_std=rate, first_plan=plan)
         result = comparison.result
         result.meta["comparison"] = comparison.to_dict()
     else:
-        result = api.execute(req, plan, x, time_offset=time_offset, callback=callback, progress=progress,
-                             rate_std=rate)
+        from fitode.interrupted import Stopped
+        try:
+            result = api.execute(req, plan, x, time_offset=time_offset, callback=callback, progress=progress,
+                                 rate_std=rate, measurement=measurement)
+        except Stopped as stop:  # Ctrl-C after training: the estimates, marked (result.meta["stopped"])
+            result = stop.result
     if clip is not None:  # what was measured, in the video's pixels as `fitode VIDEO` writes it
         from fitode.pipeline import source_measurement
         source_measurement(result, clip)
-    return result
+    from fitode.result import Result
+    return Result.of(result)
 
 
 def _read_path(path, video: dict[str, Any], dt, time_offset, req, progress: bool):

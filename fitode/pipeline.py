@@ -4,8 +4,9 @@ run_video reads the video, says what it understood, fits, calibrates when asked,
 an output folder: result.json (the report), fit.json (the full FitResult with every run's
 history, reloadable with FitResult.load), estimates.csv and track.csv (fitode.tables), latent.png,
 params.png, loss.png, frames.png and track.png (what was measured, drawn on the frames).
-An interrupted run (Ctrl-C) or one where every restart failed still leaves a folder, with
-result.json marked "incomplete" or "failed" and whatever plots its data allow.
+An interrupted run (Ctrl-C, SIGTERM) or one where every restart failed still leaves a folder, with
+result.json marked "interrupted" (with the "stage" it stopped in: fitode.interrupted) or "failed",
+estimates.csv (the estimates wherever a fit finished) and whatever plots its data allow.
 """
 from __future__ import annotations
 
@@ -15,13 +16,16 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
 from fitode.errors import FitodeError
+from fitode.interrupted import Stopped, mark_report, reached
+from fitode.measurement import geometry
 from fitode.train.history import History  # torch-free, like everything this module imports at the top
 
 RUNS_DIR = "fitode-runs"
 
 
 class RunInterrupted(KeyboardInterrupt):
-    """Ctrl-C during training, after the folder was written (status "incomplete"); .outcome has it."""
+    """Ctrl-C or SIGTERM after a fit finished, once the folder is written (status "interrupted",
+    "stage" where it stopped); .outcome has it."""
 
     def __init__(self, outcome: "RunOutcome"):
         super().__init__("interrupted")
@@ -32,7 +36,7 @@ class RunInterrupted(KeyboardInterrupt):
 class RunOutcome:
     """What run_video returns. report is exactly what result.json holds."""
 
-    result: Any  # fitode.train.result.FitResult (not imported here so `import fitode.pipeline` stays light)
+    result: Any  # fitode.result.Result (not imported here so `import fitode.pipeline` stays light)
     out_dir: Path
     report: dict[str, Any]
     warnings: list[str] = field(default_factory=list)
@@ -82,6 +86,7 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     the partial folder is written (RunInterrupted, carrying the RunOutcome, when the trainer
     returned what it had).
     """
+    target = _check_out_dir(out_dir)  # first: an unwritable --out costs not even the import of torch
     from fitode import api
     from fitode import report as rep
 
@@ -93,14 +98,15 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     reqs = api.requests(**fit)  # one per candidate equation (several: a comparison, fitode.compare)
     req = reqs[0]
     ode, spec = req.system, req.spec
-    target = _check_out_dir(out_dir)
     analysis = rep.analysis_dict(rep.identifiability(ode))
 
     clip, t0 = read_clip(video, read, req.calibration, progress=progress)
     frames = api.as_frames(clip.frames)
-    plan = api.plan(req, frames, clip.dt, track=clip.track)
+    plan = api.plan(req, frames, clip.dt, track=clip.track, geometry=geometry(clip))
     clip, t0, plan = read_again(video, read, req, clip, t0, plan, progress=progress)
     frames = api.as_frames(clip.frames)
+    # what cannot be measured fails here, in one line, before the header and the output folder
+    measurement = api.measure(plan, frames)
     for line in rep.understanding_lines(ode, spec, analysis, clip, plan):
         say(line)
 
@@ -118,7 +124,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     try:
         if len(reqs) > 1:
             from fitode.compare import compare
-            comparison = compare(reqs, frames, clip.dt, track=clip.track, time_offset=t0, callback=recorder,
+            comparison = compare(reqs, frames, clip.dt, track=clip.track, geometry=geometry(clip), time_offset=t0,
+                                 callback=recorder,
                                  progress=progress, rate_std=rate_std(read.fps), log=say, first_plan=plan)
             chosen = comparison.candidates[comparison.chosen]
             result, req, plan = chosen.result, chosen.request, chosen.plan
@@ -129,11 +136,15 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
                                             options, t0), "created": report["created"]}
         else:
             result = api.execute(req, plan, frames, time_offset=t0, callback=recorder, progress=progress,
-                                 rate_std=rate_std(read.fps))
-    except KeyboardInterrupt:
-        _write_partial(report, recorder, folder, "incomplete", "interrupted (Ctrl-C) during training", plots_done)
-        say(f"interrupted: partial results in {folder}")
-        raise
+                                 rate_std=rate_std(read.fps), measurement=measurement)
+    except KeyboardInterrupt as exc:
+        if not (isinstance(exc, Stopped) and len(reqs) == 1):  # no fit finished (of a comparison: not all)
+            stage = "training" if len(reqs) == 1 else "comparison"
+            _write_partial(report, recorder, folder, "interrupted", f"interrupted during the {stage}",
+                           plots_done, stage=stage)
+            say(f"interrupted: partial results in {folder}")
+            raise
+        result = exc.result  # the fit finished: its estimates are kept (fitode.interrupted)
     except FitodeError as exc:
         _write_partial(report, recorder, folder, "failed", str(exc), plots_done)
         raise
@@ -151,23 +162,31 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     if comparison is not None:
         report["comparison"] = comparison.to_dict()
         result.meta["comparison"] = report["comparison"]
-    if interrupted:
-        stopped = [r for r in result.runs if r.status == "interrupted"]
-        where = f"run {stopped[0].index + 1} at step {stopped[0].steps}" if stopped else "training"
-        report["status"] = "incomplete"
-        report["error"] = f"interrupted (Ctrl-C) in {where}"
-        if req.calibration:
-            report["warnings"].append("--calibrate was not applied: training was interrupted")
+    mark_report(report, result)
+    if interrupted and req.calibration and result.calibration is None:
+        report["warnings"].append(f"--calibrate was not applied: the {report['stage']} was interrupted")
     result.meta.update({"input": report["input"]})
-    result.save(folder / "fit.json")
-    report["warnings"] += _plots_for_result(folder, result, report, plots_done, t0)
-    warning = _try_plot(plot_track, folder / "track.png", result, clip, video, t0, plots_done=plots_done)
-    report["warnings"] += [warning] if warning else []
+    # the numbers first: an interruption while drawing loses only pictures
     from fitode.tables import write_run_tables
-    report["files"] = sorted(["result.json", "fit.json", *plots_done, *write_run_tables(report, folder)])
+    result.save_json(folder / "fit.json")
+    tables = write_run_tables(report, folder)
+    report["files"] = sorted(["result.json", "fit.json", *plots_done, *tables])
+    rep.write_json(report, folder / "result.json")
+    try:
+        reached("pictures")
+        report["warnings"] += _plots_for_result(folder, result, report, plots_done, t0)
+        warning = _try_plot(plot_track, folder / "track.png", result, clip, video, t0, plots_done=plots_done)
+        report["warnings"] += [warning] if warning else []
+    except KeyboardInterrupt:
+        interrupted = True
+        if report["status"] != "interrupted":
+            report["status"], report["stage"] = "interrupted", "pictures"
+            report["error"] = "interrupted while drawing the pictures"
+    report["files"] = sorted(["result.json", "fit.json", *plots_done, *tables])
     rep.write_json(report, folder / "result.json")
     say(f"wrote {folder}/ ({', '.join(report['files'])})")
-    outcome = RunOutcome(result=result, out_dir=folder, report=report, warnings=list(report["warnings"]))
+    from fitode.result import Result
+    outcome = RunOutcome(result=Result.of(result), out_dir=folder, report=report, warnings=list(report["warnings"]))
     if interrupted:
         raise RunInterrupted(outcome)
     return outcome
@@ -234,7 +253,7 @@ def level_in_detail(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
         # more rows can split what the shrunk frames saw as one line (the real bottle at 360 rows)
         return clip, t0, plan
     req = replace(req, observe=plan.observation)
-    return finer, t1, api.plan(req, frames, finer.dt, track=finer.track)
+    return finer, t1, api.plan(req, frames, finer.dt, track=finer.track, geometry=geometry(finer))
 
 
 def _observation_parts(plan):
@@ -258,7 +277,7 @@ def light_in_colour(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
         return clip, t0, plan
     clip, t0 = read_clip(video, replace(read, color=True, stride=clip.stride), req.calibration, progress=progress)
     req = replace(req, observe=plan.observation)
-    return clip, t0, api.plan(req, api.as_frames(clip.frames), clip.dt, track=clip.track)
+    return clip, t0, api.plan(req, api.as_frames(clip.frames), clip.dt, track=clip.track, geometry=geometry(clip))
 
 
 def source_measurement(result, clip) -> None:
@@ -341,7 +360,30 @@ def _check_out_dir(out_dir) -> Path | None:
         if any(p.iterdir()):
             raise FitodeError(f"--out {p}: folder exists and is not empty; fitode never overwrites a run, "
                               "choose another folder")
+    _check_writable(p)
     return p
+
+
+def _check_writable(p: Path) -> None:
+    """A folder can be made at p and written in: tried now (made and removed again), so an
+    unwritable place (/proc/x, a path through a file) costs no decode and no fit."""
+    made = [a for a in (p, *p.parents) if not a.exists()]
+    probe = p / ".fitode-write-check"
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+        probe.touch()
+        probe.unlink()
+    except OSError as exc:
+        above = next((a for a in p.parents if a.exists()), None)
+        why = (f"{above} is a file, not a folder" if above is not None and not above.is_dir()
+               else exc.strerror or type(exc).__name__)
+        raise FitodeError(f"--out {p}: cannot write there ({why}); choose another folder") from None
+    finally:
+        for a in made:  # nothing is left behind until the fit writes its folder
+            try:
+                a.rmdir()
+            except OSError:
+                break
 
 
 def _make_out_dir(target: Path | None, stem: str) -> Path:
@@ -423,12 +465,14 @@ def _plots_for_result(folder: Path, result, report, plots_done: list[str], t0: f
 
 
 def _write_partial(report: dict, recorder: _Recorder, folder: Path, status: str, why: str,
-                   plots_done: list[str]) -> None:
-    """Whatever a run that did not finish has: the per-step history and the last constants of each run."""
+                   plots_done: list[str], stage: str | None = None) -> None:
+    """Whatever a run that did not finish has: the per-step history and the last constants of each
+    run, and an estimates.csv with no rows (no estimate was made)."""
     from fitode import plots
     from fitode import report as rep
+    from fitode.tables import write_run_tables
     rows = recorder.rows()
-    if rows and status == "incomplete":
+    if rows and status == "interrupted":
         rows[-1]["status"] = "interrupted"
     for r in rows:
         if r["status"] == "running":
@@ -436,6 +480,9 @@ def _write_partial(report: dict, recorder: _Recorder, folder: Path, status: str,
             # is the trainer's to say), and when every run failed they all did
             r["status"] = "failed" if status == "failed" else "ended"
     rep.partial_report(report, rows, status, why)
+    if stage is not None:
+        report["stage"] = stage
+    plots_done += write_run_tables(report, folder)
     if rows:
         _try_plot(plots.plot_params, folder / "params.png", rows, {}, plots_done=plots_done)
         _try_plot(plots.plot_loss, folder / "loss.png", rows, plots_done=plots_done)

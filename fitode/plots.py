@@ -32,7 +32,15 @@ def _colours(n: int) -> list:
 def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rollout: np.ndarray,
                 train_frames: int, states: Sequence[str], *, window: int | None = None,
                 ylabels: Sequence[str] | None = None, angles: Sequence[str] = ()) -> Path:
-    """Encoded latent (dots) and the physics rollout from the first frames (line), per state.
+    """latent.png: latent_figure saved at path."""
+    return _save(latent_figure(time, latent, rollout, train_frames, states, window=window, ylabels=ylabels,
+                               angles=angles), path)
+
+
+def latent_figure(time: Sequence[float], latent: np.ndarray, rollout: np.ndarray, train_frames: int,
+                  states: Sequence[str], *, window: int | None = None, ylabels: Sequence[str] | None = None,
+                  angles: Sequence[str] = ()):
+    """Encoded latent (dots) and the physics rollout from the first frames (line), per state: a Figure.
 
     The rollout starts from the first frames only and runs over the whole clip, so everything
     after the first window is a prediction; frames beyond train_frames were not trained on and are
@@ -72,7 +80,7 @@ def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rol
     axes[0, 0].legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, fontsize=8, frameon=False)
     axes[-1, 0].set_xlabel("time (s)")
     fig.suptitle("encoded latent and physics rollout", fontsize=11)
-    return _save(fig, path)
+    return fig
 
 
 def latent_label(state: str) -> str:
@@ -92,9 +100,12 @@ def state_labels(result) -> list[str]:
     m = result.meta.get("measurement") or {}
     readings = m.get("states") or {}
     out = []
+    units = result.meta.get("units") or {}
     for s in result.states:
         how = readings.get(s)
-        if result.meta.get("physical_units"):
+        if units.get(s):
+            out.append(f"{s} ({units[s]}, {'up' if how == 'y' else 'measured'})")
+        elif result.meta.get("physical_units"):
             out.append(f"{s} (radians)" if how == "angle" else f"{s}\nmeasured, in its own units")
         elif result.meta.get("measured") and how:
             what = READING_WORDS.get(how, f"the {how}")

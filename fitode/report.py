@@ -1,7 +1,9 @@
 """What a run says: the lines printed before training, result.json, and the table at the end.
 
 result.json layout (every run of `fitode VIDEO ...` writes one):
-    status            "running" | "complete" | "incomplete" (Ctrl-C) | "failed"
+    status            "running" | "complete" | "interrupted" (Ctrl-C, SIGTERM) | "failed"
+    stage             where an interrupted run stopped: training, calibration, intervals, assessment,
+                      pictures (fitode.interrupted; the estimates are kept wherever training finished)
     error             why it is not complete (absent when complete)
     fitode_version, created
     input             file, name, sha256, frames_used, frames_train, frame_shape, fps, fps_source,
@@ -109,7 +111,18 @@ def understanding_lines(ode, spec, analysis, clip, plan) -> list[str]:
     if plan.config.gauge:
         from fitode.describe import gauge_lines
         lines += gauge_lines(ode, plan.observation)
-    return lines + plan.lines()
+    return lines + plan.lines() + length_lines(plan.observation)
+
+
+def length_lines(observation) -> list[str]:
+    """How a measured length reads: source pixels (y up), or metres through a scale stick."""
+    if not observation.measured or observation.physical_units:
+        return []
+    lengths = observation.lengths
+    if lengths.metres_per_px:
+        return [f"lengths: in metres (x right, y up), {1000 * lengths.metres_per_px:.5g} mm per source pixel "
+                f"from --scale (±{100 * lengths.relative_std:.2g}%)"]
+    return ["lengths: in source pixels (x right, y up); constants in px and s (--scale gives metres)"]
 
 
 def _clip_lines(clip) -> list[str]:
@@ -217,6 +230,8 @@ def complete_report(report: dict[str, Any], result, analysis, t0: float = 0.0) -
         "train_frames": int(result.train_frames),
         "states": list(result.states),
         "units": "physical" if result.calibration is not None else "latent",
+        # each state's unit where it was measured in one (px, or m with --scale), and not calibrated
+        "state_units": {} if result.calibration is not None else dict(result.meta.get("units") or {}),
         "latent": to_jsonable(latent),
         "rollout": to_jsonable(rollout),
     }

@@ -1,9 +1,10 @@
 """The tables a run leaves to take away: estimates.csv and track.csv, written from result.json's report.
 
-estimates.csv: one row per learnable constant, ESTIMATE_COLUMNS.
+estimates.csv: one row per learnable constant, ESTIMATE_COLUMNS (restart_spread is result.json's
+"std": the spread of the restarts, not the uncertainty; the interval is that).
 track.csv: one row per frame used: time_s (video seconds), frame (index in the source video),
-then per state S: S (the latent, or the calibrated value in physical units when --calibrate was
-applied), S_fit (the equation's rollout), S_residual (S - S_fit), then what was measured in the
+then per state S: S (the measured state in its unit, S_px or S_m with --scale; a free encoder's
+latent; or the calibrated value in physical units when --calibrate was applied), S_fit (the equation's rollout), S_residual (S - S_fit), then what was measured in the
 source video's pixels where result.json's "measurement" has it (MEASURED_COLUMNS: the tracked
 point x_px, y_px; the apparent radius radius_px).
 
@@ -20,8 +21,10 @@ from typing import Any, Iterable, Mapping
 
 from fitode.jsonio import to_jsonable, write_text
 
-# interval_low/high stay empty until estimates carry an interval
-ESTIMATE_COLUMNS = ("constant", "value", "interval_low", "interval_high", "std", "unit", "calibrated",
+# interval_low/high: the 95% interval (empty where none was made). restart_spread: the standard
+# deviation of the restarts' final values that the estimate averages (0 for one): how alike the
+# restarts ended, no uncertainty of the value (that is the interval)
+ESTIMATE_COLUMNS = ("constant", "value", "interval_low", "interval_high", "restart_spread", "unit", "calibrated",
                     "verdict", "reason")
 # equation: the one fitted, as typed (of several candidates, the one the comparison reports: fitode.compare)
 BATCH_ESTIMATE_COLUMNS = ("job", "video", "equation") + ESTIMATE_COLUMNS
@@ -44,7 +47,9 @@ def estimate_rows(parameters: Mapping[str, Mapping[str, Any]]) -> list[list[Any]
         interval = est.get("interval")
         low, high = (interval[0], interval[1]) if isinstance(interval, (list, tuple)) and len(interval) == 2 \
             else (None, None)
-        rows.append([name, est.get("value"), low, high, est.get("std"), est.get("unit"),
+        # a value in the latent's arbitrary units has none of the equation file's unit (as the printed table)
+        unit = "latent units" if est.get("latent_units") else est.get("unit")
+        rows.append([name, est.get("value"), low, high, est.get("std"), unit,
                      bool(est.get("calibrated")), est.get("verdict"), est.get("verdict_reason")])
     return rows
 
@@ -57,10 +62,13 @@ def estimates_csv(report: Mapping[str, Any]) -> str:
 MEASURED_COLUMNS = {"track": ("x_px", "y_px"), "radii": ("radius_px",)}
 
 
-def track_header(states: Iterable[str], measured: Iterable[str] = ()) -> list[str]:
-    states = list(states)
-    return (["time_s", "frame"] + states + [f"{s}_fit" for s in states] + [f"{s}_residual" for s in states]
-            + [c for key in measured for c in MEASURED_COLUMNS[key]])
+def track_header(states: Iterable[str], measured: Iterable[str] = (),
+                 units: Mapping[str, str] | None = None) -> list[str]:
+    """The columns; a state measured in a unit (px, or m with --scale) says it: y_px, y_fit_px."""
+    states, units = list(states), dict(units or {})
+    unit = {s: f"_{units[s]}" if units.get(s) else "" for s in states}
+    return (["time_s", "frame"] + [f"{s}{unit[s]}" for s in states] + [f"{s}_fit{unit[s]}" for s in states]
+            + [f"{s}_residual{unit[s]}" for s in states] + [c for key in measured for c in MEASURED_COLUMNS[key]])
 
 
 def _measured(report: Mapping[str, Any], n: int) -> tuple[list[str], list[list[Any]]]:
@@ -91,7 +99,7 @@ def track_csv(report: Mapping[str, Any]) -> str | None:
     for i, (t, z, r) in enumerate(zip(traj["time"], traj["latent"], traj["rollout"])):
         resid = [_minus(a, b) for a, b in zip(z, r)]
         table.append([t, first + i * stride, *z, *r, *resid, *(measured[i] if keys else [])])
-    return csv_text(track_header(states, keys), table)
+    return csv_text(track_header(states, keys, traj.get("state_units")), table)
 
 
 def write_run_tables(report: Mapping[str, Any], folder: Path) -> list[str]:

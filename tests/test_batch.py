@@ -354,6 +354,21 @@ def test_aggregate_mean_std_and_relative_error():
     assert rel_error(1.1, -1.0) == pytest.approx(2.1) and rel_error(1.0, 0.0) is None
 
 
+def test_pooled_interval_is_the_inverse_variance_mean_widened_where_videos_disagree():
+    from fitode.batch.summary import Z95, pooled_interval
+    # two videos that agree: the interval of one, narrowed by sqrt(2)
+    p = pooled_interval([(1.0, [0.9, 1.1]), (1.0, [0.9, 1.1]), (5.0, None)])
+    assert p["pooled"] == pytest.approx(1.0) and p["pooled_n"] == 2
+    assert p["pooled_high"] - p["pooled"] == pytest.approx(0.1 / math.sqrt(2))
+    # the narrower interval weighs more
+    assert pooled_interval([(1.0, [0.9, 1.1]), (2.0, [1.0, 3.0])])["pooled"] == pytest.approx((1 * 100 + 2 * 1) / 101)
+    # two that disagree (chi2 = 50 for 1 degree of freedom): widened by the Birge ratio, sqrt(50)
+    sigma = 0.1 / Z95
+    w = pooled_interval([(1.0, [0.9, 1.1]), (1.0 + 10 * sigma, [1.0 + 10 * sigma - 0.1, 1.0 + 10 * sigma + 0.1])])
+    assert w["pooled_high"] - w["pooled"] == pytest.approx(0.1 / math.sqrt(2) * math.sqrt(50))
+    assert pooled_interval([(1.0, None)]) == {"pooled": None, "pooled_low": None, "pooled_high": None, "pooled_n": 0}
+
+
 # --- command line -------------------------------------------------------------------------
 
 def test_cli_bad_manifest_is_one_line_status_2(tmp_path, capsys):

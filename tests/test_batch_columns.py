@@ -70,5 +70,5 @@ def test_batch_writes_one_estimates_table(tmp_path):
     for r in rows:
         report = json.loads((out / r["job"] / "result.json").read_text())
         assert float(r["value"]) == report["parameters"]["gamma"]["value"]
-        assert float(r["std"]) == report["parameters"]["gamma"]["std"]
+        assert float(r["restart_spread"]) == report["parameters"]["gamma"]["std"]
         assert Path(r["video"]).name in ("a.json", "b.json")

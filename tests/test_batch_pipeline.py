@@ -90,7 +90,15 @@ def test_local_batch_matches_each_result_and_reruns_only_the_broken_job(local_ba
         est = report["parameters"]["gamma"]
         row = rows[name]
         assert row["status"] == "complete" and row["error"] == ""
-        assert float(row["gamma"]) == est["value"] and float(row["gamma.std"]) == est["std"]
+        assert float(row["gamma"]) == est["value"] and float(row["gamma.restart_spread"]) == est["std"]
+        # what the job keeps, the batch keeps: the interval, the unit, the verdict and its reason
+        assert [float(row["gamma.low"]), float(row["gamma.high"])] == est["interval"]
+        assert row["gamma.unit"] == ("latent units" if est["latent_units"] else est["unit"] or "")
+        assert (row["gamma.verdict"], row["gamma.reason"]) == (est["verdict"], est["verdict_reason"])
+        mine = read_csv(out / name / "estimates.csv")
+        kept = [{k: v for k, v in r.items() if k not in ("job", "video", "equation")}
+                for r in read_csv(out / "estimates.csv") if r["job"] == name]
+        assert kept == mine and mine[0]["interval_low"] and mine[0]["verdict"] and mine[0]["reason"]
         true = GAMMAS[name.split("-")[1]]
         assert float(row["gamma.true"]) == true
         assert float(row["gamma.rel_error"]) == pytest.approx((est["value"] - true) / true)
@@ -102,6 +110,11 @@ def test_local_batch_matches_each_result_and_reruns_only_the_broken_job(local_ba
     slow = [float(rows[n]["gamma"]) for n in ("001-a", "002-b")]
     assert float(agg["slow"]["gamma.mean"]) == pytest.approx(np.mean(slow))
     assert float(agg["slow"]["gamma.std"]) == pytest.approx(np.std(slow, ddof=1))
+    # the pooled interval of the two slow videos: centred between their estimates (pooled_interval's rule
+    # is tested on numbers in test_batch)
+    assert agg["slow"]["gamma.pooled_n"] == "2" and agg["slow"]["gamma.unit"] == rows["001-a"]["gamma.unit"]
+    assert min(slow) <= float(agg["slow"]["gamma.pooled"]) <= max(slow)
+    assert float(agg["slow"]["gamma.pooled_low"]) < float(agg["slow"]["gamma.pooled"]) < float(agg["slow"]["gamma.pooled_high"])
     assert agg["fast"]["gamma.n"] == "1" and agg["broken"]["complete"] == "0" and agg["broken"]["failed"] == "1"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["counts"] == {"complete": 3, "incomplete": 0, "failed": 1, "pending": 0}

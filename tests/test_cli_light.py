@@ -118,7 +118,11 @@ def test_batch_flags_become_manifest_defaults(capsys, tmp_path):
 
 @pytest.mark.parametrize("argv,said", [
     (["v.mp4", "--sytem", "pendulum"], "unknown flag --sytem (did you mean --system?)"),
-    (["v.mp4", "--eq", "x'' = -k*x", "--max-step=3", "--restrats", "2"], "unknown flag --restrats (did you mean --restarts?)"),
+    (["v.mp4", "--eq", "x'' = -k*x", "--max-steps=3", "--restrats", "2"], "unknown flag --restrats (did you mean --restarts?)"),
+    # a prefix is no abbreviation: argparse would take --restart for --restarts without a word
+    (["v.mp4", "--eq", "x'' = -k*x", "--restart", "2"], "unknown flag --restart (did you mean --restarts?)"),
+    (["v.mp4", "--eq", "x'' = -k*x", "--max-step=3"], "unknown flag --max-step (did you mean --max-steps?)"),
+    (["synth", "scene", "pendulum", "--dur", "2"], "fitode synth scene: unknown flag --dur (did you mean --duration?)"),
     (["batch", "m.csv", "--dryrun"], "fitode batch: unknown flag --dryrun (did you mean --dry-run?)"),
     (["check", "--eq", "x'' = -k*x", "--zzzz"], "fitode check: unknown flag --zzzz (see fitode check -h)"),
     (["synth", "paper", "motion", "--outt", "x.npy"], "fitode synth paper: unknown flag --outt (did you mean --out?)"),

@@ -90,6 +90,8 @@ def error_cases(tmp: Path, video: Path, short: Path) -> dict[str, list]:
         "calibrate outside clip": [video, *eq, "--calibrate", "I(0)=1; I(60)=0.5"],
         "calibrate one point": [video, *eq, "--calibrate", "I(0)=1"],
         "out not empty": [video, *eq, "--out", full],
+        "out through a file": [video, *eq, "--out", tmp / "not-a-video.mp4" / "sub"],
+        "out in /proc": [video, *eq, "--out", "/proc/fitode-out"],
         "cuda without cuda": [video, *eq, "--device", "cuda"],
     }
 
@@ -99,7 +101,7 @@ CASES = ["missing file", "unreadable video", "zero frames", "fewer frames than a
          "roi outside", "bad size", "bad stride", "bad fps", "start after end", "bad prior", "prior std 0",
          "bad const", "bad init name", "bad train fraction", "window too short", "workers is gone", "equation syntax", "equation with t",
          "missing eq file", "unknown system", "calibrate unknown state", "calibrate outside clip",
-         "calibrate one point", "out not empty", "cuda without cuda"]
+         "calibrate one point", "out not empty", "out through a file", "out in /proc", "cuda without cuda"]
 
 
 @pytest.mark.parametrize("case", CASES)
@@ -116,6 +118,18 @@ def test_error_paths_exit_2_with_one_line(case, video, short_video, tmp_path, ca
     assert len(lines) == 1 and lines[0].startswith("fitode: error: "), (case, err)
     assert out == ""
     assert not (tmp_path / "fitode-runs").exists()  # nothing was started
+
+
+@pytest.mark.parametrize("where", ["file/sub", "/proc/fitode-out"])
+def test_an_unwritable_out_fails_before_the_video_is_read(where, video, tmp_path, capsys, monkeypatch):
+    import fitode.pipeline
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "file").write_text("a file, not a folder")
+    monkeypatch.setattr(fitode.pipeline, "read_clip", lambda *a, **k: pytest.fail("the video was read"))
+    code, out, err = run([video, "--eq", EQ, "--out", where], capsys)
+    assert code == 2 and err.count("\n") == 1 and f"--out {where}: cannot write there" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]  # nothing made, nothing left
 
 
 def test_existing_out_dir_is_never_touched(video, tmp_path, capsys):
@@ -209,3 +223,16 @@ def test_help_lists_every_flag(capsys):
         assert flag in text, flag
     assert "--workers" not in text  # restarts train as one batched model, in this process
     assert "(default 4)" in text  # the restarts' default, read from fitode.train.config
+
+
+def test_what_cannot_be_measured_fails_before_the_header_and_the_folder(tmp_path, capsys):
+    """The bundled swing's pivot is far outside its small frames: the angle cannot be read, and that
+    is said in one line with status 2 before anything is printed or written."""
+    root = Path(__file__).resolve().parents[1] / "fitode" / "examples"
+    out = tmp_path / "out"
+    code = main([str(root / "pendulum.mp4"), "--eq-file", str(root / "pendulum.toml"), "--observe", "angle",
+                 "--out", str(out)])
+    captured = capsys.readouterr()
+    assert code == 2 and not out.exists()
+    assert "angle observation" in captured.err and len(captured.err.strip().splitlines()) == 1
+    assert "input:" not in captured.out + captured.err  # no header

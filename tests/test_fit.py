@@ -51,7 +51,7 @@ def test_without_kl_the_encoder_collapses(intensity):
 
 
 def test_result_round_trips_through_json_and_extrapolates(oscillator_fit, tmp_path):
-    path = oscillator_fit.save(tmp_path / "result.json")
+    path = oscillator_fit.save_json(tmp_path / "fit.json")
     back = FitResult.load(path)
     assert back.values == pytest.approx(oscillator_fit.values)
     assert np.allclose(back.latent, oscillator_fit.latent)

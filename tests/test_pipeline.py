@@ -70,7 +70,7 @@ def test_empty_out_dir_is_used(video, tmp_path):
 
 
 @pytest.mark.slow
-def test_interrupt_leaves_an_incomplete_folder(video, tmp_path):
+def test_interrupt_leaves_an_interrupted_folder(video, tmp_path):
     def stop(info):
         if info.run == 1 and info.step == 4:
             raise KeyboardInterrupt
@@ -78,7 +78,7 @@ def test_interrupt_leaves_an_incomplete_folder(video, tmp_path):
         run_job(video, tmp_path / "i", eq=EQ, log=None, callback=stop, **TINY)
     folder = tmp_path / "i"
     report = json.loads((folder / "result.json").read_text())
-    assert report["status"] == "incomplete" and "interrupted" in report["error"]
+    assert report["status"] == "interrupted" and report["stage"] == "training" and "interrupted" in report["error"]
     # restarts train together: the interrupt stops both where the trainer last looked (every 10 steps)
     assert [r["status"] for r in report["runs"]] == ["interrupted", "interrupted"]
     assert [r["steps"] for r in report["runs"]] == [10, 10]
@@ -101,7 +101,7 @@ def test_interrupt_before_any_estimate_keeps_the_history(video, tmp_path):
         run_job(video, tmp_path / "i", eq=EQ, log=None, callback=stop, **TINY)
     folder = tmp_path / "i"
     report = json.loads((folder / "result.json").read_text())
-    assert report["status"] == "incomplete" and report["input"]["sha256"]
+    assert report["status"] == "interrupted" and report["input"]["sha256"]
     assert report["runs"][0]["steps"] == 10
     # the trainer may hand back the interrupted run (fit.json) or nothing (history.json from the steps seen)
     name = "fit.json" if (folder / "fit.json").exists() else "history.json"
@@ -121,7 +121,7 @@ def test_every_run_failing_leaves_a_failed_folder(video, tmp_path):
 @pytest.mark.slow
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGINT semantics")
 def test_real_ctrl_c(video, tmp_path):
-    """SIGINT to a running `fitode`: status 130, and the folder says incomplete."""
+    """SIGINT to a running `fitode`: status 130, and the folder says interrupted."""
     out = tmp_path / "ctrl-c"
     p = subprocess.Popen([sys.executable, "-m", "fitode", str(video), "--eq", EQ, "--out", str(out), "--quiet",
                           "--max-steps", "100000", "--min-steps", "100000", "--window", "8", "--stride", "1",
@@ -141,7 +141,7 @@ def test_real_ctrl_c(video, tmp_path):
     assert p.returncode == 130, (p.returncode, err)
     assert err.strip().splitlines()[-1] == "fitode: interrupted"
     report = json.loads((out / "result.json").read_text())
-    assert report["status"] == "incomplete"
+    assert report["status"] == "interrupted"
     assert report["runs"] and report["runs"][0]["steps"] > 0
 
 

@@ -1,7 +1,7 @@
 """SIGTERM (what `kill`, schedulers and containers send) takes the same path as Ctrl-C.
 
 `fitode batch` stops its workers at once and leaves a consistent summary; `fitode VIDEO` leaves
-its run folder marked incomplete. Both are real processes signalled from here.
+its run folder marked interrupted. Both are real processes signalled from here.
 """
 from __future__ import annotations
 
@@ -87,7 +87,7 @@ def test_sigterm_in_process_restores_the_previous_handler():
 
 
 @pytest.mark.slow  # a real fit, signalled while it trains
-def test_sigterm_during_a_fit_leaves_the_run_incomplete(tmp_path):
+def test_sigterm_during_a_fit_leaves_the_run_interrupted(tmp_path):
     from fitode.examples.make_example import decay_values, render_glow, write_mp4
 
     video = write_mp4(tmp_path / "glow.mp4", render_glow(decay_values(60, 10.0, 0.5), size=16), 10.0)
@@ -115,4 +115,4 @@ def test_sigterm_during_a_fit_leaves_the_run_incomplete(tmp_path):
     assert proc.returncode != 0, text
     assert "Traceback" not in text, text
     report = json.loads((out / "result.json").read_text())
-    assert report["status"] == "incomplete", report.get("status")
+    assert report["status"] == "interrupted", report.get("status")

@@ -59,9 +59,19 @@ def test_strays_of_an_oscillation_are_mended_and_a_clean_swing_is_left_alone():
     assert mend_strays(clean)[1] == 0
 
 
-def test_a_named_axis_that_barely_moves_is_taken_for_a_habit():
+def test_a_named_axis_is_read_even_where_it_barely_moves_and_the_line_of_motion_is_suggested():
     t = np.arange(90) / 30
     bounce = np.column_stack([100 + 0.5 * np.sin(7 * t), 120 + 30 * np.cos(7 * t)])  # up and down, named x
     _, prepared = _model("x'' = -k*x", bounce)
-    assert abs(np.corrcoef(prepared.inputs.reshape(-1).numpy(), bounce[:, 1])[0, 1]) > 0.99
-    assert "carries under" in prepared.note
+    assert np.corrcoef(prepared.inputs.reshape(-1).numpy(), bounce[:, 0])[0, 1] > 0.99  # across, as named
+    assert "barely moves" in prepared.caution and "name the state s" in prepared.caution
+    _, line = _model("s'' = -k*s", bounce)  # a name that says no axis reads the line of motion
+    assert abs(np.corrcoef(line.inputs.reshape(-1).numpy(), bounce[:, 1])[0, 1]) > 0.99 and line.caution is None
+
+
+def test_a_flat_throw_named_y_reads_its_height():
+    t = np.arange(60) / 240  # a 25-degree throw's flight: 225 pixels across, 19 up (image y down)
+    throw = np.column_stack([50 + 900 * t, 200 - 300 * t + 0.5 * 2400 * t ** 2])
+    assert throw[:, 1].std() < 0.3 * throw[:, 0].std()  # the height carries under 30% of the motion
+    _, prepared = _model("y'' = -g", throw)
+    assert np.corrcoef(prepared.inputs.reshape(-1).numpy(), -throw[:, 1])[0, 1] > 0.999  # up, not the flight

@@ -89,7 +89,7 @@ class FitPlan:
 
 def make_plan(system: OdeSystem, params: Mapping[str, ParamSpec], frames: torch.Tensor, dt: float,
               config: TrainConfig, *, observe: str | ObservationModel | None = None, n_train: int | None = None,
-              init: Mapping[str, float] | None = None, observe_source: str = "as asked", track=None) -> FitPlan:
+              init: Mapping[str, float] | None = None, observe_source: str = "as asked", track=None, lengths=None) -> FitPlan:
     """Resolve every choice of a fit on its frames (T, C, H, W): the observation model (auto looks
     at the training frames), the encoder it reads with, and the training window.
     observe_source: where a named model came from ("as asked", "from the equation file").
@@ -101,6 +101,8 @@ def make_plan(system: OdeSystem, params: Mapping[str, ParamSpec], frames: torch.
         track = None  # frames cut or subsampled after reading: the track is not theirs
     observation = resolve_observation(observe, system, frames[:n_train], config.light, config.encoder,
                                       source=observe_source, track=track, n_train=n_train)
+    if lengths is not None:  # how a measured length reads in px or metres (observe.base.Lengths)
+        observation.use_lengths(lengths)
     config, encoder_reason = resolve_encoder(config, system, observation)
     config, window_reason = resolve_window(config, frames[:n_train], dt)
     if n_train < config.window + 1:

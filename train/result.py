@@ -133,7 +133,8 @@ class FitResult:
         }
         return to_jsonable(d)
 
-    def save(self, path: str | Path) -> Path:
+    def save_json(self, path: str | Path) -> Path:
+        """Everything (to_dict) as JSON at path, as fit.json; back with load."""
         return write_json(self.to_dict(), path)
 
     @classmethod

@@ -18,6 +18,7 @@ from fitode.codegen.constants import reparam_for
 from fitode.eqparse import OdeSystem, ParamSpec, analyse
 from fitode.eqparse.gauge import gauge_plan
 from fitode.eqparse.identify import sign_odd
+from fitode.eqparse.units import constant_units
 from fitode.errors import TrainingError
 
 from . import interrupts
@@ -78,18 +79,22 @@ def restart_inits(system: OdeSystem, params: Mapping[str, ParamSpec], n: int, se
 
 
 def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None = None,
-               progress: bool = False, stretch: tuple[int, int] | None = None) -> FitResult:
+               progress: bool = False, stretch: tuple[int, int] | None = None, measurement=None) -> FitResult:
     """Every restart of the plan on raw float frames (T, C, H, W), trained on the first
     plan.n_train; the estimates and the measurement's checks (result.checks, with their findings).
     The verdicts are the assessment's (fitode.train.assess), made after any calibration.
     stretch: the [first, last) frames a measured path is fitted on, found before (for another
-    candidate equation of a comparison, which must fit the same frames): no stretch is looked for."""
+    candidate equation of a comparison, which must fit the same frames): no stretch is looked for.
+    measurement: the frames as measure.measure read them for this plan (None: measured here)."""
     system, params, config, observation, dt = plan.system, plan.params, plan.config, plan.observation, plan.dt
     n_total, n_train = plan.n_frames, plan.n_train
     if frames.shape[0] != n_total:
         raise TrainingError(f"the plan is for {n_total} frames, got {frames.shape[0]}")
     device = torch.device(config.device)
-    prepared = observation.prepare(frames.to(device), config.encoder, fit_frames=n_train).in_order(system.states)
+    if measurement is None:
+        from .measure import measure
+        measurement = measure(frames, plan)
+    prepared = measurement.prepared
     gauges = observation.gauge_plan(gauge_plan(system))
     coefs = prepared.components[:n_train]  # the training frames' leading principal components
     perspective = straight = None  # straight: one trajectory over the best run's state, for both checks
@@ -137,13 +142,15 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
     records, latents, rollouts, states = fit.records, fit.latents, fit.rollouts, fit.states
     best, selected, interrupted = fit.best, fit.selected, fit.interrupted
     span = slice(first, last)
-    own_units = _own_units(system, analyse(system), observation)
+    units = _state_units(prepared, gauges, direct_failed is None and bool(extra_meta))
+    constant_unit = constant_units(system, units) if units else {}
+    own_units = set() if len(units) == len(system.states) else _own_units(system, analyse(system), observation)
     estimates = {}
     for name in system.learnable:
         # restarts that read one measured path each read it in units of their own: a constant that
         # depends on the units is the best run's, not a mean over several units
         vals = np.array([records[i].value(name) for i in ([best] if name in own_units else selected)])
-        unit = params.get(name, ParamSpec()).unit
+        unit = constant_unit.get(name) or params.get(name, ParamSpec()).unit
         estimates[name] = Estimate(float(vals.mean()), float(vals.std()) if len(vals) > 1 else 0.0, len(vals), unit)
     findings, numbers = video_checks(latents[best, span], rollouts[best, span], coefs[span], dt,
                                      records[best].score, oscillator=system.max_order >= 2,
@@ -176,7 +183,8 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
         states=list(system.states), equation=system.text, fixed=dict(system.fixed),
         settings=config.as_dict(), selection_factor=config.selection_factor,
         meta={"interrupted": interrupted, "plan": plan.to_dict(), "measured": observation.measured,
-              "physical_units": observation.fixes_scale(), "subspace": prepared.note, "rank": prepared.rank,
+              "physical_units": observation.fixes_scale() or len(units) == len(system.states), "units": units,
+              "length": _length_record(observation, units), "subspace": prepared.note, "rank": prepared.rank,
               "gauge": {s: g.describe() for s, g in gauges.items()}, "own_units": sorted(own_units),
               "left_out": fit.left_out, "measurement": prepared.drawing, **extra_meta},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},
@@ -198,6 +206,8 @@ def _other_reading(prepared, plan: FitPlan, gauges, fit, stretch: tuple[int, int
     taken = prepared.inputs.reshape(prepared.inputs.shape[0], -1)[:plan.n_train, 0].double().cpu().numpy()
     if not plan.observation.physical_units:  # in the units _measured_latent gave the taken reading
         x = _prior_units(x, plan, float(taken.std()))
+        if prepared.unit_scale is not None:
+            x = x * float(prepared.unit_scale[0]) * float(taken.std()) / float(plan.prior[1])
     first, last = stretch
     inits = restart_inits(system, plan.params, config.restarts, config.seed, plan.init)
     seeds = [config.seed * 1000 + i for i in range(len(inits))]
@@ -243,7 +253,18 @@ def _measured_latent(prepared, plan: FitPlan) -> np.ndarray:
     x = prepared.inputs.reshape(prepared.inputs.shape[0], -1).double().cpu().numpy()
     if plan.observation.physical_units:
         return x
-    return _prior_units(x, plan, x[:plan.n_train].std(axis=0))
+    spread = x[:plan.n_train].std(axis=0)
+    return _prior_units(x, plan, spread) * _unit_factor(prepared, plan, spread)
+
+
+def _unit_factor(prepared, plan: FitPlan, spread) -> np.ndarray | float:
+    """What a latent in the prior's units is multiplied by to be in the columns' own units (px, or
+    m with a scale: Prepared.unit_scale), so that the path is fitted in them and its constants come
+    out in px/s^2 or m/s^2; 1 where the columns have no unit. The prior's mean stays as an offset
+    of that many spreads (a drain's level starts inside sqrt's domain; the gauge's offset moves it)."""
+    if prepared.unit_scale is None:
+        return 1.0
+    return np.asarray(prepared.unit_scale, dtype=float) * np.asarray(spread, dtype=float) / float(plan.prior[1])
 
 
 def _prior_units(x: np.ndarray, plan: FitPlan, spread) -> np.ndarray:
@@ -359,6 +380,25 @@ def _stretch_record(stretch: tuple[int, int], plan: FitPlan, source: str, reason
     first, last = stretch
     return {"start_frame": first, "end_frame": last, "start_s": first * plan.dt, "end_s": last * plan.dt,
             "reason": reason, "source": source}
+
+
+def _state_units(prepared, gauges, fitted_directly: bool) -> dict[str, str]:
+    """state -> the unit its measured path was fitted in (px, or m with a scale), for the states
+    whose scale the gauge does not learn (a learned scale puts the state in units of its own);
+    {} where the path was not fitted directly (an encoder's latent is in the prior's units)."""
+    if not fitted_directly or prepared.units is None or prepared.states is None:
+        return {}
+    return {s: u for s, u in zip(prepared.states, prepared.units) if not gauges[s].scale_learned}
+
+
+def _length_record(observation: ObservationModel, units: Mapping[str, str]) -> dict | None:
+    """How lengths were read (meta["length"]): the unit, the source pixels per frame pixel and,
+    with a scale stick, the metres per source pixel and its relative standard deviation."""
+    if not units:
+        return None
+    lengths = observation.lengths
+    return {"unit": lengths.unit, "frame_scale": list(lengths.frame_scale), "metres_per_px": lengths.metres_per_px,
+            "relative_std": lengths.relative_std}
 
 
 def _own_units(system: OdeSystem, analysis, observation: ObservationModel) -> set[str]:

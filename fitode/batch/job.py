@@ -36,7 +36,8 @@ class JobOutcome:
     """What a worker reports back: small (no arrays), so it crosses process and node boundaries cheaply.
 
     status: "complete" | "incomplete" (the fit stopped early, e.g. interrupted) | "failed".
-    parameters: name -> {"value", "std", "verdict", "verdict_reason", "unit", "calibrated"} as in result.json.
+    parameters: name -> {"value", "std", "interval", "verdict", "verdict_reason", "unit", "calibrated",
+        "latent_units"} as in result.json (where it has them).
     """
 
     name: str
@@ -125,8 +126,12 @@ def report_parameters(report: dict[str, Any]) -> dict[str, dict[str, float | Non
         est = est if isinstance(est, dict) else {}
         out[name] = {"value": _num(est.get("value")), "std": _num(est.get("std"))}
         out[name].update({k: est[k] for k in ("verdict", "verdict_reason", "unit") if isinstance(est.get(k), str)})
-        if isinstance(est.get("calibrated"), bool):
-            out[name]["calibrated"] = est["calibrated"]
+        for flag in ("calibrated", "latent_units"):
+            if isinstance(est.get(flag), bool):
+                out[name][flag] = est[flag]
+        interval = est.get("interval")
+        if isinstance(interval, list) and len(interval) == 2 and all(_num(v) is not None for v in interval):
+            out[name]["interval"] = [float(interval[0]), float(interval[1])]
     return out
 
 

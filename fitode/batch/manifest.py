@@ -30,7 +30,7 @@ Keys (a row's value wins over `[defaults]`, which wins over the command line's f
     eq | eq_file | system   the same, explicitly (give one of the four)
     setting        label of the per-setting aggregate (default "default")
     name           the job's folder name (default: row number and video stem, e.g. 003-clip)
-    fps start end roi size color stride mask calibrate train_fraction   as in `fitode VIDEO`
+    fps start end roi size color stride mask calibrate scale train_fraction   as in `fitode VIDEO`
     prior          "MEAN,STD"
     free           constant names to free, separated by spaces or commas
     observe        the observation model, as --observe ("position", "x=position;y=size")
@@ -56,7 +56,7 @@ from typing import Any, Mapping
 from fitode.errors import FitodeError
 
 EQUATION_KEYS = ("equation", "eq", "eq_file", "system")
-VIDEO_KEYS = ("fps", "start", "end", "roi", "size", "color", "stride", "mask", "calibrate", "train_fraction")
+VIDEO_KEYS = ("fps", "start", "end", "roi", "size", "color", "stride", "mask", "calibrate", "scale", "train_fraction")
 MODEL_KEYS = ("prior", "free", "observe", "const", "init")
 META_KEYS = ("video", "setting", "name")
 MAP_PREFIXES = ("const", "init", "true")
@@ -426,6 +426,12 @@ def _check_equations(jobs: list[Job], file: str) -> None:
                 parse_calibration(k["calibrate"], ode.states)
             except FitodeError as exc:
                 raise ManifestError(f"{job.where}, column 'calibrate': {exc}") from None
+        if k.get("scale") is not None:
+            from fitode.scale import parse_scale  # --scale's own check
+            try:
+                parse_scale(k["scale"])
+            except FitodeError as exc:
+                raise ManifestError(f"{job.where}, column 'scale': {exc}") from None
         if isinstance(k.get("observe"), dict):
             from fitode.train.observe.catalog import check_states
             try:
@@ -598,4 +604,4 @@ def _convert_video(key: str, value: Any, src: _Row) -> Any:
         if x < 1:
             raise src.error(key, f"expected 'auto' or a whole number >= 1, got {value!r}")
         return x
-    return _text(value, src, key)  # mask, calibrate
+    return _text(value, src, key)  # mask, calibrate, scale

@@ -3,11 +3,14 @@
 summary.csv columns: name, setting, video, status, error, wall_s, reused, folder, stride, dt, equation
 (the stride the job used, which `auto` may choose per video, the resulting time step, and the
 equation fitted: of several candidates, the one the comparison reports), then per
-constant NAME, NAME.std (spread over restarts), NAME.verdict (trusted / ambiguous / not
-trustworthy; its reason is in summary.json), NAME.true and NAME.rel_error where a true value is
-given. aggregate.csv: setting, jobs, complete, failed, then per constant NAME.mean,
-NAME.std (sample standard deviation over the setting's complete videos), NAME.n, NAME.true
-and NAME.rel_error (of the mean), as the paper's tables report them. estimates.csv: job, video,
+constant NAME, NAME.low and NAME.high (its 95% interval), NAME.unit ("latent units" where the
+value has none), NAME.restart_spread (the standard deviation of the restarts: no uncertainty),
+NAME.verdict (trusted / ambiguous / not trustworthy) and NAME.reason, NAME.true and
+NAME.rel_error where a true value is given. aggregate.csv: setting, jobs, complete, failed,
+then per constant NAME.mean, NAME.std (sample standard deviation over the setting's complete
+videos), NAME.n, NAME.unit, NAME.pooled, NAME.pooled_low, NAME.pooled_high and NAME.pooled_n
+(the 95% interval pooled from the videos' intervals: pooled_interval), NAME.true and
+NAME.rel_error (of the mean), as the paper's tables report them. estimates.csv: job, video,
 equation, then the columns of a run's estimates.csv (fitode.tables), one row per job and constant.
 
 Every file is written to a temporary name and renamed over the old one, so an interrupted
@@ -77,7 +80,8 @@ def summary_table(rows: list[SummaryRow]) -> tuple[list[str], list[list[Any]]]:
     has_truth = {n for r in rows for n in r.truth}
     header = ["name", "setting", "video", "status", "error", "wall_s", "reused", "folder", "stride", "dt", "equation"]
     for n in names:
-        header += [n, f"{n}.std", f"{n}.verdict"] + ([f"{n}.true", f"{n}.rel_error"] if n in has_truth else [])
+        header += [n, f"{n}.low", f"{n}.high", f"{n}.unit", f"{n}.restart_spread", f"{n}.verdict", f"{n}.reason"]
+        header += [f"{n}.true", f"{n}.rel_error"] if n in has_truth else []
     table = []
     for r in rows:
         line: list[Any] = [r.name, r.setting, r.video, r.status, r.error or "",
@@ -85,7 +89,9 @@ def summary_table(rows: list[SummaryRow]) -> tuple[list[str], list[list[Any]]]:
                            r.details.get("equation")]
         for n in names:
             p = r.parameters.get(n) or {}
-            line += [p.get("value"), p.get("std"), p.get("verdict") or ""]
+            low, high = p.get("interval") or (None, None)
+            line += [p.get("value"), low, high, unit_of(p), p.get("std"), p.get("verdict") or "",
+                     p.get("verdict_reason") or ""]
             if n in has_truth:
                 line += [r.truth.get(n), r.rel_error(n)]
         table.append(line)
@@ -108,10 +114,44 @@ def aggregate(rows: list[SummaryRow]) -> list[dict[str, Any]]:
                    else (0.0 if vals else None))
             truths = {r.truth[n] for r in group if n in r.truth}
             true = truths.pop() if len(truths) == 1 else None
+            units = {unit_of(r.parameters.get(n) or {}) for r in ok if n in r.parameters}
+            pooled = pooled_interval([(r.parameters[n].get("value"), r.parameters[n].get("interval"))
+                                      for r in ok if n in r.parameters])
             entry["parameters"][n] = {"mean": mean, "std": std, "n": len(vals), "true": true,
-                                      "rel_error": rel_error(mean, true)}
+                                      "rel_error": rel_error(mean, true),
+                                      "unit": units.pop() if len(units) == 1 else ("mixed" if units else None),
+                                      **pooled}
         out.append(entry)
     return out
+
+
+def unit_of(p: dict[str, Any]) -> str | None:
+    """A job's constant's unit as its table says it ("latent units" where the value has none)."""
+    return "latent units" if p.get("latent_units") else p.get("unit")
+
+
+Z95 = 1.959963984540054  # the normal quantile of a two-sided 95% interval
+
+
+def pooled_interval(estimates: list[tuple[float | None, list[float] | None]]) -> dict[str, Any]:
+    """The 95% interval of the value that several videos of one setting measure: the inverse-
+    variance mean of the estimates with a 95% interval (each interval read as value +- 1.96 sigma,
+    its wider side), its interval widened by sqrt(chi2 / (n - 1)) where the videos disagree more
+    than their intervals say (the Birge ratio, as the Particle Data Group scales a world average).
+    {"pooled", "pooled_low", "pooled_high", "pooled_n"}; None values where no video has an interval."""
+    pts = [(float(v), max(v - iv[0], iv[1] - v) / Z95) for v, iv in estimates
+           if v is not None and iv and all(isinstance(e, (int, float)) and math.isfinite(e) for e in iv)]
+    pts = [(v, s) for v, s in pts if s > 0]
+    if not pts:
+        return {"pooled": None, "pooled_low": None, "pooled_high": None, "pooled_n": 0}
+    weights = [1.0 / s ** 2 for _, s in pts]
+    centre = sum(w * v for w, (v, _) in zip(weights, pts)) / sum(weights)
+    sigma = 1.0 / math.sqrt(sum(weights))
+    if len(pts) > 1:
+        chi2 = sum(w * (v - centre) ** 2 for w, (v, _) in zip(weights, pts))
+        sigma *= max(1.0, math.sqrt(chi2 / (len(pts) - 1)))
+    return {"pooled": centre, "pooled_low": centre - Z95 * sigma, "pooled_high": centre + Z95 * sigma,
+            "pooled_n": len(pts)}
 
 
 def aggregate_table(agg: list[dict[str, Any]]) -> tuple[list[str], list[list[Any]]]:
@@ -120,13 +160,15 @@ def aggregate_table(agg: list[dict[str, Any]]) -> tuple[list[str], list[list[Any
         names.update(dict.fromkeys(e["parameters"]))
     header = ["setting", "jobs", "complete", "failed"]
     for n in names:
-        header += [f"{n}.mean", f"{n}.std", f"{n}.n", f"{n}.true", f"{n}.rel_error"]
+        header += [f"{n}.mean", f"{n}.std", f"{n}.n", f"{n}.unit", f"{n}.pooled", f"{n}.pooled_low",
+                   f"{n}.pooled_high", f"{n}.pooled_n", f"{n}.true", f"{n}.rel_error"]
     table = []
     for e in agg:
         line: list[Any] = [e["setting"], e["jobs"], e["complete"], e["failed"]]
         for n in names:
             p = e["parameters"].get(n) or {}
-            line += [p.get("mean"), p.get("std"), p.get("n"), p.get("true"), p.get("rel_error")]
+            line += [p.get("mean"), p.get("std"), p.get("n"), p.get("unit"), p.get("pooled"), p.get("pooled_low"),
+                     p.get("pooled_high"), p.get("pooled_n"), p.get("true"), p.get("rel_error")]
         table.append(line)
     return header, table
 
@@ -160,6 +202,8 @@ def format_aggregate(agg: list[dict[str, Any]]) -> str:
                 cells.append("-")
                 continue
             cell = f"{p['mean']:.4g} ± {p['std']:.2g}"
+            if p.get("pooled") is not None:
+                cell += f" (pooled {p['pooled']:.4g} [{p['pooled_low']:.4g}, {p['pooled_high']:.4g}])"
             if p.get("rel_error") is not None:
                 cell += f" ({p['rel_error'] * 100:+.1f}% vs {p['true']:g})"
             cells.append(cell)

@@ -401,6 +401,7 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
     edge = 1.2
     cv.paint(R.segment(x_top, y_top, x_bot, floor_y, edge), _rgb(0.35, 0.26, 0.16),
              (x_top - 2, y_top - 2, x_bot + 2, floor_y + 2))
+    ruler = _ruler(cv, x_bot - 0.5 * ppm, x_bot, 0.08 * h, 0.5, max(2.0, 0.02 * h))
     body = _rgb(0.15, 0.35, 0.7)
 
     def draw(c: R.Canvas, i: int) -> None:
@@ -421,7 +422,7 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
                   truth={"alpha": float(alpha), "mu": mu},
                   physical={"a": float(a), "alpha_deg": float(alpha_deg), "mu": mu, "g": G, "t0": t0,
                             "rest_before_frames": before, "rest_after_frames": after,
-                            "s0": s0, "ramp_length": ramp, "pixels_per_metre": float(ppm)},
+                            "s0": s0, "ramp_length": ramp, "pixels_per_metre": float(ppm), "ruler": ruler},
                   state=np.stack([s, v], axis=1), state_names=("x", "x'"))
 
 
@@ -665,14 +666,33 @@ def _spring(w2, rng, duration, dt, h, w, p) -> _Scene:
 THROW_EQUATION = "y'' = -g"
 
 
+def _ruler(cv, x1: float, x2: float, y: float, metres: float, tick: float) -> dict:
+    """Two dark marks on the wall `metres` apart (render coordinates x1, x2 at height y), joined
+    by a thin bar, as a ruler or tape in view: the record gives their centres in source pixels
+    (centres at whole numbers, as --scale takes them) for a scale stick."""
+    ink = _rgb(0.1, 0.1, 0.12)
+    for x in (x1, x2):
+        cv.paint(R.segment(x, y - tick, x, y + tick, 0.8), ink, (x - 3, y - tick - 3, x + 3, y + tick + 3))
+    cv.paint(R.segment(x1, y, x2, y, 0.4), ink, (x1 - 2, y - 2, x2 + 2, y + 2))
+    return {"p1": [x1 - 0.5, y - 0.5], "p2": [x2 - 0.5, y - 0.5], "metres": float(metres)}
+
+
 def _throw(g, rng, duration, dt, h, w, p) -> _Scene:
     """A small ball thrown across the view: held still at the launch point (rest_before
     seconds), a parabola (x at constant speed, y'' = -g up), then still where it lands
-    (rest_after). Filmed as a slow-motion phone does: give fps=240 and store the frames at 30."""
+    (rest_after). Filmed as a slow-motion phone does: give fps=240 and store the frames at 30.
+    angle (degrees): the launch angle, which sets the flight's time over its range; a ruler
+    half the range long hangs on the wall above (physical "ruler": its marks in source pixels)."""
     if not 0.5 <= g <= 50:
         raise FitodeError(f"g must be between 0.5 and 50 m/s^2, got {g}")
-    flight = float(p.get("flight", 0.8))                # seconds in the air
     span = float(p.get("range", 2.0))                    # metres across
+    if p.get("angle") is not None:
+        angle = float(p["angle"])
+        if not 1.0 <= angle <= 80.0:
+            raise FitodeError(f"the launch angle must be between 1 and 80 degrees, got {angle}")
+        flight = float(np.sqrt(2 * span * np.tan(np.deg2rad(angle)) / g))
+    else:
+        flight = float(p.get("flight", 0.8))            # seconds in the air
     radius = float(p.get("radius", 0.011))               # metres
     rest_before, rest_after = float(p.get("rest_before", 0.1)), float(p.get("rest_after", 0.1))
     vx, vy = span / flight, g * flight / 2
@@ -694,6 +714,7 @@ def _throw(g, rng, duration, dt, h, w, p) -> _Scene:
     floor_y = int(oy + 3 * rb + 2)
     _paste_rows(bg, floor_y, _wood(rng, h - floor_y, w, base=(0.5, 0.42, 0.33)))
     cv = R.Canvas(bg, 4)
+    ruler = _ruler(cv, ox + 0.25 * span * ppm, ox + 0.75 * span * ppm, 0.08 * h, 0.5 * span, max(2.0, 0.02 * h))
 
     def draw(cc: R.Canvas, i: int) -> None:
         bx, by = ox + x[i] * ppm, oy - y[i] * ppm
@@ -705,6 +726,7 @@ def _throw(g, rng, duration, dt, h, w, p) -> _Scene:
                   physical={"g": float(g), "vx": vx, "vy": vy, "flight_s": flight, "range": span,
                             "radius_px": float(rb), "pixels_per_metre": float(ppm),
                             "flight_start_frame": before, "flight_end_frame": before + inflight,
+                            "angle_deg": float(np.rad2deg(np.arctan2(vy, vx))), "ruler": ruler,
                             "x": x.tolist()},
                   state=np.stack([y, vel], axis=1), state_names=("y", "y'"))
 
@@ -750,7 +772,7 @@ SCENES: dict[str, SceneInfo] = {i.name: i for i in (
               ("c", "amplitude", "sway", "sway_omega", "distractors", "legs"), SPRING_EQUATION, "spring", _spring),
     SceneInfo("throw", "g", (1.62, 9.80665, 24.79), "m/s^2",  # the Moon, the Earth, Jupiter
               "a small ball thrown across the view (film it at 240 fps)", None,
-              ("flight", "range", "radius", "rest_before", "rest_after"), THROW_EQUATION, "throw", _throw),
+              ("flight", "angle", "range", "radius", "rest_before", "rest_after"), THROW_EQUATION, "throw", _throw),
 )}
 
 

@@ -33,6 +33,30 @@ from .subspace import signal_subspace
 CHECKS = ("score", "quiet", "perspective", "trajectory", "rivals", "direct", "periods")
 
 
+@dataclass(frozen=True)
+class Lengths:
+    """How a length measured on the frames reads in the user's units: the source pixels per frame
+    pixel along x and y (the reader's crop and shrink), and the metres per source pixel where a
+    scale stick was given (fitode.scale), with its relative standard deviation."""
+
+    frame_scale: tuple[float, float] = (1.0, 1.0)
+    metres_per_px: float | None = None
+    relative_std: float = 0.0
+
+    @property
+    def unit(self) -> str:
+        return "m" if self.metres_per_px else "px"
+
+    def factor(self, direction=(1.0, 0.0), source: bool = False) -> float:
+        """The unit's amount in one pixel along direction (dx, dy) of the frames (source: a length
+        measured in source pixels already, the reader's track)."""
+        sx, sy = (1.0, 1.0) if source else self.frame_scale
+        dx, dy = float(direction[0]), float(direction[1])
+        norm = (dx * dx + dy * dy) ** 0.5 or 1.0
+        px = ((dx * sx) ** 2 + (dy * sy) ** 2) ** 0.5 / norm
+        return px * (self.metres_per_px or 1.0)
+
+
 @dataclass
 class Prepared:
     """The frames as the encoder reads them, and what the checks need from the same analysis."""
@@ -53,6 +77,10 @@ class Prepared:
     # (tracking.mend): the trainer weighs them on the frames it fits (tracking.mended_caution),
     # not on the whole clip, where a hand before a release would count against the fall
     mended: tuple[int, ...] = ()
+    # the unit of each measured column (px, or m with a scale) and the amount of it in one unit of
+    # the column as given (its spread): a measured path is fitted in these units; None: no unit
+    units: tuple[str, ...] | None = None
+    unit_scale: tuple[float, ...] | None = None
 
     def in_order(self, states: Sequence[str]) -> "Prepared":
         """The measured columns in the equation's state order, checked: a model may measure its
@@ -68,7 +96,10 @@ class Prepared:
             raise ConfigError(f"the observation measures {', '.join(names)}: each must be a different state of the "
                               f"equation ({', '.join(states)})")
         order = sorted(range(len(names)), key=lambda j: states.index(names[j]))
-        return replace(self, inputs=self.inputs[:, order], states=tuple(names[j] for j in order))
+        units = None if self.units is None else tuple(self.units[j] for j in order)
+        unit_scale = None if self.unit_scale is None else tuple(self.unit_scale[j] for j in order)
+        return replace(self, inputs=self.inputs[:, order], states=tuple(names[j] for j in order), units=units,
+                       unit_scale=unit_scale)
 
 
 class ObservationModel:
@@ -88,12 +119,17 @@ class ObservationModel:
         self.reason = ""  # one line: why this model (set by resolve_observation)
         self.equation_states: tuple[str, ...] | None = None  # set by bind
         self.track = None  # the reader's track at the source's resolution (track.Track), set by use_track
+        self.lengths = Lengths()  # how a measured length reads in px or metres, set by use_lengths
 
     def use_track(self, track) -> None:
         """Take the reader's track (track.Track, one row per frame the model will be given), which a
         model that measures a place reads instead of the shrunk frames; None for none. A model
         of one object (`position@2`) takes that object's path."""
         self.track = track.object(self.object) if track is not None and self.object is not None else track
+
+    def use_lengths(self, lengths: Lengths) -> None:
+        """Take how a length on the frames reads in source pixels, or metres with a scale stick."""
+        self.lengths = lengths
 
     def bind(self, system) -> None:
         """Take the equation's states (resolve_observation calls this before any prepare)."""
@@ -183,13 +219,16 @@ class MeasuredObservation(ObservationModel):
         return enc
 
     def column(self, z: torch.Tensor, components: np.ndarray, note: str, caution: str | None = None,
-               drawing: dict[str, Any] | None = None) -> Prepared:
+               drawing: dict[str, Any] | None = None, unit_scale: float | None = None) -> Prepared:
         """One measured column (T,) as the equation's first state (the one a single-state
-        equation has); drawing: what was measured (drawing.py), its "states" filled in here."""
+        equation has); drawing: what was measured (drawing.py), its "states" filled in here;
+        unit_scale: the length (px or m, self.lengths) one unit of z stands for, where z is one."""
         states = self.equation_states[:1] if self.equation_states else None
         if drawing is not None:
             drawing = dict(drawing)
             reading = drawing.pop("reading", drawing["kind"])
             if states:
                 drawing["states"] = {states[0]: reading}
-        return Prepared(z.reshape(-1, 1, 1, 1), components, 1, note, caution, states, drawing)
+        units = (self.lengths.unit,) if unit_scale is not None else None
+        return Prepared(z.reshape(-1, 1, 1, 1), components, 1, note, caution, states, drawing, units=units,
+                        unit_scale=None if unit_scale is None else (float(unit_scale),))

@@ -136,4 +136,5 @@ class LevelObservation(MeasuredObservation):
                 f"{level.travel:.1f} pixels, read linearly")
         drawing = record(self.name, reading="level", levels=[float(v) for v in h],
                          region=[float(left) - 0.5, float(top) - 0.5, float(right) + 0.5, float(bottom) + 0.5])
-        return self.column(z.to(frames.dtype), out.components, note, None, drawing)
+        return self.column(z.to(frames.dtype), out.components, note, None, drawing,
+                           unit_scale=float(h[:n_fit].std()) * self.lengths.factor((0.0, 1.0)))

@@ -44,12 +44,18 @@ class PerStateObservation(MeasuredObservation):
         for model in self.parts.values():
             model.use_track(track)
 
+    def use_lengths(self, lengths) -> None:
+        super().use_lengths(lengths)
+        for model in self.parts.values():
+            model.use_lengths(lengths)
+
     def applies(self, check: str) -> bool:
         # the perspective re-reading bends a one-dimensional path
         return False if check == "perspective" else super().applies(check)
 
     def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
         columns, notes, cautions, components, drawings, mended = [], [], [], None, [], set()
+        units, unit_scale = [], []
         for state, model in self.parts.items():
             one = model.prepare(frames, architecture, fit_frames)
             if tuple(one.inputs.shape[1:]) != (1, 1, 1):
@@ -62,9 +68,13 @@ class PerStateObservation(MeasuredObservation):
             mended.update(one.mended)
             components = one.components if components is None else components
             drawings.append((state, one.drawing))
+            units.append(one.units[0] if one.units else None)
+            unit_scale.append(one.unit_scale[0] if one.unit_scale else None)
+        given = all(u is not None for u in units)  # a unit for every state, or the path has none
         inputs = torch.stack(columns, dim=1).reshape(len(columns[0]), len(columns), 1, 1)
         return Prepared(inputs, components, len(columns), "; ".join(notes), "; ".join(cautions) or None,
-                        tuple(self.parts), _merged(self.name, drawings), mended=tuple(sorted(mended)))
+                        tuple(self.parts), _merged(self.name, drawings), mended=tuple(sorted(mended)),
+                        units=tuple(units) if given else None, unit_scale=tuple(unit_scale) if given else None)
 
     def describe(self) -> str:
         return "; ".join(f"{s}: {m.describe()}" for s, m in self.parts.items())

@@ -14,9 +14,13 @@ from .tracking import centroids, line_of_motion, mend
 
 
 AXES = {"x": "x", "y": "y", "h": "y", "z": "y"}  # a state named so reads that image axis (y, h, z: up)
-# a named axis is read where it carries at least this share of the motion's spread along its line;
-# where it carries less, the name is taken for a habit (x'' = -k*x for a spring that bounces up and
-# down) and the line of motion is read, with a note
+# a named axis is always read (the user's word wins: a 25-degree throw's height carries 12% of
+# its motion, and is what `y'' = -g` means); where it carries under BARELY of the motion's spread
+# along its line (a spring bouncing up and down named x), that is said, with the name that reads
+# the line of motion
+BARELY = 0.05
+# a single unnamed state's reading across its line of motion is fitted too where it carries at
+# least this share of the motion
 AXIS_SHARE = 0.3
 TRACK_AGREE = 0.9  # the least correlation of the track's path with the shrunk frames' centroids' to read it
 
@@ -72,11 +76,11 @@ def _strays(xy: torch.Tensor, fit_frames: int | None) -> float:
 
 
 def _weak_axes(xy: torch.Tensor, axes: list[str]) -> list[int]:
-    """The states whose named axis carries under AXIS_SHARE of the spread along the line of motion."""
+    """The states whose named axis carries under BARELY of the spread along the line of motion."""
     _, along = line_of_motion(xy)
     spread = float(along.std())
     columns = {"x": xy[:, 0], "y": xy[:, 1]}
-    return [i for i, axis in enumerate(axes) if float(columns[axis].std()) < AXIS_SHARE * spread]
+    return [i for i, axis in enumerate(axes) if float(columns[axis].std()) < BARELY * spread]
 
 
 class PositionObservation(MeasuredObservation):
@@ -141,15 +145,17 @@ class PositionObservation(MeasuredObservation):
         n_fit = xy.shape[0] if fit_frames is None else int(fit_frames)
         states = tuple(self.equation_states or ())
         axes = [axis_of(state) for state in states]
-        weak = _weak_axes(xy[:n_fit], axes) if states and all(axes) else []
-        if states and all(axes) and not weak:
+        if states and all(axes):
             prepared = self._axes(xy, states, axes, n_fit, out.components, pixels, where, frames.dtype)
+            weak = _weak_axes(xy[:n_fit], axes)
+            if weak:
+                names = ", ".join(f"{states[i]} ({'across' if axes[i] == 'x' else 'up'})" for i in weak)
+                prepared.caution = (f"{names} barely move{'s' if len(weak) == 1 else ''}: under "
+                                    f"{100 * BARELY:.0f}% of the motion runs along the image axis the name says; "
+                                    "name the state s to read its line of motion instead")
+                prepared.note += "; " + prepared.caution
         else:
             prepared = self._line(xy, n_fit, out.components, pixels, where, frames.dtype)
-            if weak:
-                prepared.note += (f"; not along the axis {'the name' if len(weak) == 1 else 'the names'} "
-                                  f"{', '.join(states[i] for i in weak)} would say: it carries under "
-                                  f"{100 * AXIS_SHARE:.0f}% of the motion")
         if where:  # the reader's track is in the source's pixels, with a frame it did not see left out
             prepared.drawing.update(space="source",
                                     track=[None if np.isnan(x) else [float(x), float(y)] for x, y in self.track.xy])
@@ -171,7 +177,9 @@ class PositionObservation(MeasuredObservation):
         drawing = record(self.name, reading="line", track=points(xy), mended=list(frames) if mended else None,
                          line={"point": [float(v) for v in xy[:n_fit].mean(dim=0)],
                                "direction": [float(v) for v in direction]})
-        prepared = replace(self.column(z.to(dtype), components, note, None, drawing), mended=frames)
+        spread = float(path[:n_fit].std().clamp_min(1e-6))
+        unit = spread * self.lengths.factor(tuple(float(v) for v in direction), source=bool(where))
+        prepared = replace(self.column(z.to(dtype), components, note, None, drawing, unit_scale=unit), mended=frames)
         across = self._across(xy, direction, n_fit, path[:n_fit].std().clamp_min(1e-6))
         if across is not None:
             prepared.other = (across.to(dtype), "across the line of motion")
@@ -198,14 +206,16 @@ class PositionObservation(MeasuredObservation):
               pixels: float, where: str, dtype: torch.dtype) -> Prepared:
         """One column per state, each the image axis its name says (x across, y/h/z up), so that
         `y'' = -g` reads the height of a throw, not its flight's main direction (the horizontal)."""
-        columns, total, frames = [], 0, set()
+        columns, total, frames, scales = [], 0, set(), []
         for axis in axes:
             coordinate = xy[:, 0] if axis == "x" else -xy[:, 1]  # image y points down
             raw = coordinate - coordinate[:n_fit].mean()
             coordinate, mended = mend(raw, n_fit)
             total += mended
             frames.update(int(i) for i in torch.nonzero(coordinate != raw).flatten())
-            columns.append(coordinate / coordinate[:n_fit].std().clamp_min(1e-6))
+            spread = float(coordinate[:n_fit].std().clamp_min(1e-6))
+            columns.append(coordinate / spread)
+            scales.append(spread * self.lengths.factor((1.0, 0.0) if axis == "x" else (0.0, 1.0), source=bool(where)))
         named = ", ".join(f"{s} {'across' if a == 'x' else 'up'}" for s, a in zip(states, axes))
         note = (f"position: {where}the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
                 f"average), each state read along the image axis its name says ({named}), linearly")
@@ -213,7 +223,8 @@ class PositionObservation(MeasuredObservation):
         inputs = torch.stack(columns, dim=1).to(dtype).reshape(len(columns[0]), len(columns), 1, 1)
         drawing = record(self.name, track=points(xy), states={s: a for s, a in zip(states, axes)},
                          mended=sorted(frames) if frames else None)
-        return Prepared(inputs, components, len(columns), note, None, states, drawing, mended=tuple(sorted(frames)))
+        return Prepared(inputs, components, len(columns), note, None, states, drawing, mended=tuple(sorted(frames)),
+                        units=(self.lengths.unit,) * len(columns), unit_scale=tuple(scales))
 
     def reread(self, prepared: Prepared, state: np.ndarray, perspective: dict, fit_frames: int) -> Prepared | None:
         """The path read through the camera's perspective that perspective.perspective_check found on a

@@ -48,7 +48,10 @@ class SizeObservation(MeasuredObservation):
         lo, hi = (centre - reach).min(dim=0).values, (centre + reach).max(dim=0).values
         drawing = record(self.name, reading="radius" if self.name == "size" else "1/radius", track=points(centre),
                          radii=[float(r) for r in radius], region=[float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])])
-        return self.column(z.to(frames.dtype), out.components, note, caution, drawing)
+        # a radius in pixels has a length's unit; its reciprocal (the distance model) has none to give
+        unit = (float(value[:n_fit].std()) * 0.5 * (self.lengths.factor((1.0, 0.0)) + self.lengths.factor((0.0, 1.0)))
+                if self.name == "size" else None)
+        return self.column(z.to(frames.dtype), out.components, note, caution, drawing, unit_scale=unit)
 
 
 class DistanceObservation(SizeObservation):

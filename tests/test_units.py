@@ -1,0 +1,75 @@
+"""Units carried: a constant's unit from its states' units and seconds; the scale stick."""
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from fitode.eqparse import parse
+from fitode.eqparse.units import constant_units, format_unit, time_exponents
+from fitode.errors import ConfigError
+from fitode.scale import parse_scale
+from fitode.train.observe import Track, resolve_observation
+from fitode.train.observe.base import Lengths
+
+
+@pytest.mark.parametrize("eq, free, want", [
+    ("y'' = -g", ["g"], {"g": "px/s^2"}),
+    ("h' = -k*sqrt(h)", [], {"k": "px^0.5/s"}),
+    ("y'' = -g - k*y'*abs(y')", ["g"], {"g": "px/s^2", "k": "1/px"}),
+    ("x'' = -w2*x - c*x'", [], {"w2": "1/s^2", "c": "1/s"}),
+    ("x'' = 0; y'' = -g", ["g"], {"g": "px/s^2"}),
+])
+def test_a_constant_is_in_units_of_its_states_and_seconds(eq, free, want):
+    system = parse(eq, free=free)
+    assert constant_units(system, {s: "px" for s in system.states}) == want
+
+
+def test_a_fixed_constant_with_units_of_its_own_leaves_the_units_to_the_equation_file():
+    system = parse("x'' = -g/L*sin(x)")  # g fixed in m/s^2: L's unit is not built from x's alone
+    assert constant_units(system, {"x": "rad"}) == {"L": None}
+    assert time_exponents(parse("s'' = a"))["a"] == 2.0
+
+
+def test_format_unit():
+    assert format_unit({"m": 1, "s": -2}) == "m/s^2"
+    assert format_unit({"m": 0.5, "s": -1}) == "m^0.5/s"
+    assert format_unit({"s": -1}) == "1/s"
+    assert format_unit({"px": 1, "s": 1}) == "px*s"
+
+
+def test_scale_stick_text_and_uncertainty():
+    stick = parse_scale("10,20,410,20=1.0±0.01")
+    assert stick.pixels == 400 and stick.metres_per_px == pytest.approx(0.0025)
+    # the distance's 1% and each end's pixel (sqrt(2)/400 of the length), in quadrature
+    assert stick.relative_std == pytest.approx(math.hypot(0.01, math.sqrt(2) / 400))
+    assert parse_scale("10,20,410,20+-0.5=1.0").end_std == 0.5
+    assert parse_scale(((0, 0), (300, 400), (2.5, 0.01))).metres_per_px == pytest.approx(0.005)
+    for bad in ("1,2,3=4", "1,2,3,x=1", "1,2,3,4=-1", "1,2,1,2=1", "1,2,3,4"):
+        with pytest.raises(ConfigError, match="--scale"):
+            parse_scale(bad)
+    with pytest.raises(ConfigError, match="outside the source frame"):
+        stick.check_inside((400, 300))
+
+
+def test_a_measured_position_carries_its_unit_in_source_pixels_or_metres():
+    t = np.arange(60) / 240
+    throw = np.column_stack([50 + 900 * t, 200 - 300 * t + 0.5 * 2400 * t ** 2])  # source pixels, y down
+    system = parse("y'' = -g", free=["g"])
+    model = resolve_observation("position", system, track=Track(throw, 5.0, 1, "generated"))
+    model.use_lengths(Lengths((2.0, 2.0)))  # the reader's track is in source pixels: the shrink does not apply
+    prepared = model.prepare(torch.zeros(len(t), 1, 8, 8))
+    z = prepared.inputs.reshape(-1).numpy() * prepared.unit_scale[0]
+    assert prepared.units == ("px",)
+    np.testing.assert_allclose(z, -(throw[:, 1] - throw[:, 1].mean()), atol=1e-3)  # px, up
+    model.use_lengths(Lengths((2.0, 2.0), metres_per_px=0.004))
+    metres = model.prepare(torch.zeros(len(t), 1, 8, 8))
+    assert metres.units == ("m",) and metres.unit_scale[0] == pytest.approx(0.004 * prepared.unit_scale[0])
+
+
+def test_lengths_on_shrunk_frames_are_in_source_pixels():
+    lengths = Lengths((4.0, 2.0))
+    assert lengths.factor((1.0, 0.0)) == 4.0 and lengths.factor((0.0, 1.0)) == 2.0
+    assert lengths.factor((1.0, 1.0)) == pytest.approx(math.sqrt(10))  # along a diagonal of the frames
+    assert lengths.factor((1.0, 0.0), source=True) == 1.0
+    assert Lengths(metres_per_px=0.01).factor((0.0, 1.0)) == pytest.approx(0.01) and Lengths(metres_per_px=0.01).unit == "m"
