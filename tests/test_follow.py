@@ -55,10 +55,14 @@ def test_hidden_frames_are_marked_not_filled_with_what_covers_the_object():
     assert np.all(err[~covered] < 0.5)
 
 
-def test_the_reader_keeps_the_change_detector_where_both_agree():
+def test_the_reader_keeps_the_change_detector_where_it_sees_one_object_or_both_agree():
     frames, truth = _clip()
     paths = measure_paths(frames, MAX_OBJECTS)[0]
     path, how = choose(frames, paths)
+    assert how == "the change from the static scene"
+    assert np.array_equal(path, paths[0], equal_nan=True)
+    # the object tracker, asked, agrees with it
+    path, how = choose(frames, paths, follow_best(frames, paths))
     assert how.startswith("the change from the static scene (the object tracker agrees")
     assert np.array_equal(path, paths[0], equal_nan=True)
 

@@ -98,8 +98,9 @@ AGREE_PX = 1.0  # ... within this many pixels (or 3 of its standard errors) of t
 
 
 def choose(stack: np.ndarray, paths: np.ndarray, found=None) -> tuple[np.ndarray, str]:
-    """The object's path (T, 2) and how it was made: the change detector's strongest path where
-    the object tracker (fitode.video.follow, seeded by the detector's paths) agrees with it, up to
+    """The object's path (T, 2) and how it was made: the change detector's strongest path where it
+    sees one moving object (fitode.video.track.objects: in view in at least half the frames), or
+    where the object tracker (fitode.video.follow, seeded by the detector's paths) agrees with it, up to
     a constant offset, in AGREE of the frames both place (the detector's centroid is at the limit
     on a clean scene: the real pendulums), or where the object tracker places the object in fewer
     than SEEN of the frames (a tiny object, read between pixels); else the object tracker's,
@@ -108,6 +109,8 @@ def choose(stack: np.ndarray, paths: np.ndarray, found=None) -> tuple[np.ndarray
     from fitode.video.follow import follow_best
 
     change = "the change from the static scene"
+    if found is None and len(objects(paths)) < 2:
+        return paths[0], change  # one moving object: nothing else to take for it, and the detector is at the limit
     found = follow_best(stack, paths) if found is None else found
     if found is None:
         return paths[0], f"{change} (the object tracker found nothing to follow)"
