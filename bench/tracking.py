@@ -18,8 +18,9 @@ some objects (the bob's blue lower half), so on the real clips the table gives t
 after their median offset is taken out, on the frames both follow, beside the raw one.
 
 Each track is read by the change detector (fitode.video.track.measure, the reader's until now), by
-the object tracker (fitode.video.follow) seeded by it, and as the reader now takes it (the
-detector's where the object tracker agrees with it, fitode.video.track.choose); the table gives the RMS error and the
+the object tracker (fitode.video.follow) seeded by it, and as a reader would take it by
+fitode.video.follow.choose (the detector's where it sees one moving object or the object tracker
+agrees with it; the reader does not use it yet); the table gives the RMS error and the
 largest, the frames each could not place, and the constant the track leads to (a damped sine's
 w0^2 for the oscillations, the fall's g in px/s^2, Torricelli's k in px^0.5/s), fitted to the
 track as realclips.py fits its own.
@@ -212,9 +213,9 @@ def track_change(frames: np.ndarray) -> np.ndarray:
 
 def track_object(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
     """The object tracker seeded by the change detector's paths, and the reader's choice between
-    the two (fitode.video.track.choose) with its note."""
-    from fitode.video.follow import follow_best
-    from fitode.video.track import MAX_OBJECTS, choose, measure_paths
+    the two (fitode.video.follow.choose) with its note."""
+    from fitode.video.follow import choose, follow_best
+    from fitode.video.track import MAX_OBJECTS, measure_paths
 
     paths = measure_paths(frames, MAX_OBJECTS)[0]
     found = follow_best(frames, paths)

@@ -2,8 +2,8 @@
 import numpy as np
 
 from fitode.synth import render as R
-from fitode.video.follow import follow_best
-from fitode.video.track import MAX_OBJECTS, choose, measure_paths
+from fitode.video.follow import choose, follow_best
+from fitode.video.track import MAX_OBJECTS, measure_paths
 
 
 def _clip(n=60, h=120, w=160, cover=None, seed=0, walker=False):
@@ -55,14 +55,15 @@ def test_hidden_frames_are_marked_not_filled_with_what_covers_the_object():
     assert np.all(err[~covered] < 0.5)
 
 
-def test_the_reader_keeps_the_change_detector_where_it_sees_one_object_or_both_agree():
+def test_the_choice_keeps_the_change_detector_where_it_sees_one_object_or_both_agree():
     frames, truth = _clip()
     paths = measure_paths(frames, MAX_OBJECTS)[0]
     path, how = choose(frames, paths)
     assert how == "the change from the static scene"
     assert np.array_equal(path, paths[0], equal_nan=True)
-    # the object tracker, asked, agrees with it
-    path, how = choose(frames, paths, follow_best(frames, paths))
+    # with a second moving object in view the object tracker is asked, and agrees with it
+    two = np.concatenate([paths[:1], paths[:1] + np.array([0.0, 30.0])])
+    path, how = choose(frames, two, follow_best(frames, paths))
     assert how.startswith("the change from the static scene (the object tracker agrees")
     assert np.array_equal(path, paths[0], equal_nan=True)
 

@@ -437,3 +437,47 @@ def _score(patch, template, weight) -> float:
         if part.any():
             worst = max(worst, float(np.median(np.abs(patch[part] - (gain * template[part] + offset)))))
     return float(1.0 - worst / contrast)
+
+
+AGREE = 0.9  # the change detector's path is kept where the object tracker agrees with it in this share of frames
+SEEN = 0.5  # ... and is not taken where it places the object in fewer than this share of the frames
+AGREE_PX = 1.0  # ... within this many pixels (or 3 of its standard errors) of their median offset
+
+
+def choose(stack: np.ndarray, paths: np.ndarray, found=None) -> tuple[np.ndarray, str]:
+    """Which track a reader would take, and how it was made (bench/tracking.py's "reader" row; the
+    reader itself, fitode.video.track, still takes the change detector's everywhere: on the shared
+    real clips this rule took the object tracker for the bob, the drop and the bouncing ball, and
+    the drop's g went from 10.16 to 14.45). The change detector's strongest path where it
+    sees one moving object (fitode.video.track.objects: in view in at least half the frames), or
+    where the object tracker (fitode.video.follow, seeded by the detector's paths) agrees with it, up to
+    a constant offset, in AGREE of the frames both place (the detector's centroid is at the limit
+    on a clean scene: the real pendulums), or where the object tracker places the object in fewer
+    than SEEN of the frames (a tiny object, read between pixels); else the object tracker's,
+    hidden frames NaN (something else changes more than the object: legs walking behind it).
+    found: the object tracker's result (fitode.video.follow.follow_best) where the caller has it."""
+    from fitode.video.track import objects
+
+    change = "the change from the static scene"
+    if len(objects(paths)) < 2:
+        return paths[0], change  # one moving object: nothing else to take for it, and the detector is at the limit
+    found = follow_best(stack, paths) if found is None else found
+    if found is None:
+        return paths[0], f"{change} (the object tracker found nothing to follow)"
+    seen = float(np.isfinite(found.xy[:, 0]).mean())
+    if seen < SEEN:
+        return paths[0], f"{change} (the object tracker placed the object in only {100 * seen:.0f}% of the frames)"
+    both = np.isfinite(paths[0][:, 0]) & np.isfinite(found.xy[:, 0])
+    if both.sum() >= 3:
+        d = paths[0][both] - found.xy[both]
+        miss = np.linalg.norm(d - np.median(d, axis=0), axis=1)
+        agree = miss <= np.maximum(AGREE_PX, 3 * np.nan_to_num(found.sigma[both], nan=0.0))
+        share = float(agree.sum()) / max(int(np.isfinite(paths[0][:, 0]).sum()), 1)
+    else:
+        share = 0.0
+    if share >= AGREE:
+        return paths[0], (f"{change} (the object tracker agrees within {AGREE_PX:g} pixel in {100 * share:.0f}% "
+                          "of the frames)")
+    return found.xy, (f"{found.note}, seeded by the change from the static scene (which is elsewhere in "
+                      f"{100 * (1 - share):.0f}% of the frames)")
+

@@ -82,54 +82,12 @@ class TrackRecorder:
         stack = np.stack([self.frames[i] for i in index])
         self.frames = []
         paths, area = measure_paths(stack, MAX_OBJECTS)
-        first, how = choose(stack, paths)
-        paths = np.concatenate([first[None], paths[1:]])
         k = self.factor
         paths = np.stack([self.crop[0] + (paths[..., 0] + 0.5) * k - 0.5, self.crop[1] + (paths[..., 1] + 0.5) * k - 0.5],
                          axis=-1)
         where = "at the source's resolution" if k == 1 else f"on frames shrunk {k}x to stay within memory"
-        note = f"{how}, {area * k * k:.0f} source pixels on average, measured {where}"
+        note = f"the change from the static scene, {area * k * k:.0f} source pixels on average, measured {where}"
         return Track(paths[0], float(area * k * k), k, note, objects(paths))
-
-
-AGREE = 0.9  # the change detector's path is kept where the object tracker agrees with it in this share of frames
-SEEN = 0.5  # ... and is not taken where it places the object in fewer than this share of the frames
-AGREE_PX = 1.0  # ... within this many pixels (or 3 of its standard errors) of their median offset
-
-
-def choose(stack: np.ndarray, paths: np.ndarray, found=None) -> tuple[np.ndarray, str]:
-    """The object's path (T, 2) and how it was made: the change detector's strongest path where it
-    sees one moving object (fitode.video.track.objects: in view in at least half the frames), or
-    where the object tracker (fitode.video.follow, seeded by the detector's paths) agrees with it, up to
-    a constant offset, in AGREE of the frames both place (the detector's centroid is at the limit
-    on a clean scene: the real pendulums), or where the object tracker places the object in fewer
-    than SEEN of the frames (a tiny object, read between pixels); else the object tracker's,
-    hidden frames NaN (something else changes more than the object: legs walking behind it).
-    found: the object tracker's result (fitode.video.follow.follow_best) where the caller has it."""
-    from fitode.video.follow import follow_best
-
-    change = "the change from the static scene"
-    if found is None and len(objects(paths)) < 2:
-        return paths[0], change  # one moving object: nothing else to take for it, and the detector is at the limit
-    found = follow_best(stack, paths) if found is None else found
-    if found is None:
-        return paths[0], f"{change} (the object tracker found nothing to follow)"
-    seen = float(np.isfinite(found.xy[:, 0]).mean())
-    if seen < SEEN:
-        return paths[0], f"{change} (the object tracker placed the object in only {100 * seen:.0f}% of the frames)"
-    both = np.isfinite(paths[0][:, 0]) & np.isfinite(found.xy[:, 0])
-    if both.sum() >= 3:
-        d = paths[0][both] - found.xy[both]
-        miss = np.linalg.norm(d - np.median(d, axis=0), axis=1)
-        agree = miss <= np.maximum(AGREE_PX, 3 * np.nan_to_num(found.sigma[both], nan=0.0))
-        share = float(agree.sum()) / max(int(np.isfinite(paths[0][:, 0]).sum()), 1)
-    else:
-        share = 0.0
-    if share >= AGREE:
-        return paths[0], (f"{change} (the object tracker agrees within {AGREE_PX:g} pixel in {100 * share:.0f}% "
-                          "of the frames)")
-    return found.xy, (f"{found.note}, seeded by the change from the static scene (which is elsewhere in "
-                      f"{100 * (1 - share):.0f}% of the frames)")
 
 
 def objects(paths: np.ndarray) -> tuple[np.ndarray, ...]:
