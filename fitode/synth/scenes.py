@@ -24,7 +24,7 @@ The dynamics are the physics, not a fit target's approximation:
   f = 1451 px/m at 1920 px wide, scaled with the width here); r0 = 0.0335, 0.06, 0.10 m.
 - spring: y'' = -w2 y - c y' (exact), a can's height on a spring; it also sways sideways (another
   frequency) and turns, and a ball is carried across the view behind it (distractors = 1 or 2
-  crossings); w2 = 12, 18, 30 1/s^2, c = 0.08 /s.
+  crossings; legs = 2: two dark legs walk back and forth behind it); w2 = 12, 18, 30 1/s^2, c = 0.08 /s.
 - throw: y'' = -g (exact), a small ball (1.4 pixels in radius at 320x240) thrown across the view,
   held still before and lying still after (rest_before, rest_after seconds); meta["physical"] has
   the flight's frames and the horizontal x. Film it with fps=240 and store it at 30 (a phone's
