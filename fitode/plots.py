@@ -342,7 +342,7 @@ NO_PLACE = {
 def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: Mapping[int, tuple[np.ndarray, Sequence[float]]],
                time: Sequence[float], *, readings: Sequence[Any] = (), stretch: Mapping[str, Any] | None = None,
                train_frames: int | None = None, calibrated: Mapping[str, tuple[float, float]] | None = None,
-               pieces: Mapping[str, Any] | None = None) -> Path:
+               source_frames: Sequence[int] | None = None, pieces: Mapping[str, Any] | None = None) -> Path:
     """Sample frames with what was measured drawn on them, and each measured reading over time.
 
     measurement: the record of result.json's "measurement" (source pixels); stills: {frame of the
@@ -350,8 +350,10 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
     time of every frame of the clip; readings: fitode.measurement.readings (measured and fitted
     reading per state); stretch: the stretch record (frames of the clip, end exclusive), shaded;
     calibrated: {state: (A, B)}, the calibration's state = A * latent + B, for a second axis in the
-    calibrated units where a reading is affine in the latent; pieces: the pieces record
-    (meta["pieces"], fitode.train.pieces: frames of the clip), each piece shaded and each event marked.
+    calibrated units where a reading is affine in the latent. source_frames: (T,) the source
+    video's index of every frame of the clip, as track.csv's `frame` numbers them (None: the
+    clip's own index). pieces: the pieces record (meta["pieces"], fitode.train.pieces: frames of
+    the clip), each piece shaded and each event marked.
     """
     plt = _plt()
     m = dict(measurement or {})
@@ -388,7 +390,8 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
         ax.set_ylim(shown[3], shown[1])
         where = "" if stretch is None else ("(in the stretch)" if inside[i] else "(outside the stretch)")
         # a narrow column (a tall view: a fall's strip) has no room for the title on one line
-        parts = [f"t = {t[i]:.2f} s", f"frame {i}"] + ([where] if where else [])
+        frame = int(source_frames[i]) if source_frames is not None else i
+        parts = [f"t = {t[i]:.2f} s", f"frame {frame}"] + ([where] if where else [])
         ax.set_title(("\n" if width / cols < 3.2 else "  ").join(parts), fontsize=8)
         ax.tick_params(labelsize=6)
         if k == 0:
