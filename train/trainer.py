@@ -429,10 +429,16 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int]
 def _longest(x: np.ndarray, pieces: Pieces, dt: float) -> Stretch:
     """The piece that travels farthest, as a stretch (the runs are fitted on it first)."""
     a, b = max(pieces.spans, key=lambda s: float(np.ptp(x[s[0]:s[1]], axis=0).max()))
-    kinds = {e.kind: e.frame for e in pieces.events}
+    at = {e.frame: e.kind for e in pieces.events}
+    ends = {"stop": f"the motion stops at {b * dt:.3g} s"}
     why_start = ("from the clip's first frame" if a == 0 else
-                 f"released at {a * dt:.3g} s" if kinds.get("release") == a else f"a piece from {a * dt:.3g} s")
-    why_end = "to the clip's last frame" if b >= len(x) else f"a piece to {b * dt:.3g} s"
+                 f"the motion starts at {a * dt:.3g} s (released: held before)" if at.get(a) == "release" else
+                 f"after a bounce, from {a * dt:.3g} s" if a != pieces.spans[0][0] else
+                 f"before {a * dt:.3g} s the path does not follow one trajectory of the equation")
+    bounce = next((e for e in pieces.events if e.kind == "bounce" and e.frame >= b - 2), None)
+    why_end = ("to the clip's last frame" if b >= len(x) else ends["stop"] if at.get(b) == "stop" else
+               f"a bounce at {bounce.frame * dt:.3g} s" if bounce is not None and bounce.frame <= b + 3 else
+               f"from {b * dt:.3g} s the path leaves one trajectory of the equation")
     return Stretch(a, b, why_start, why_end, pieces.noise)
 
 
