@@ -24,7 +24,6 @@ from fitode.train.observe import ObservationModel
 from fitode.train.plan import FitPlan, make_plan
 from fitode.train.result import FitResult
 from fitode.train.trainer import Callback, fit_frames
-from fitode.fitting import fit  # noqa: F401 - fitode.api.fit, as before
 
 
 @dataclass(frozen=True)
@@ -132,10 +131,21 @@ def execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_of
     a dt or --fps the user gave; fitode.train.interval.RATE_CONTAINER_STD for a container's).
     stretch: the frames a measured path is fitted on, as fitode.train.trainer.fit_frames takes it;
     measurement: the plan's Measurement (fitode.train.measure), made by `measure` before."""
-    from fitode.eqparse import analyse
-    from fitode.train.assess import assess
+    from fitode.numeric_warnings import kept
 
+    with kept() as numeric:  # numpy's overflow warnings become the result's warnings, not terminal noise
+        result = _execute(req, fit_plan, frames, time_offset=time_offset, callback=callback, progress=progress,
+                          rate_std=rate_std, stretch=stretch, measurement=measurement)
+    result.warnings += numeric.lines()
+    return result
+
+
+def _execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_offset: float,
+             callback: Callback | None, progress: bool, rate_std: float,
+             stretch: tuple[int, int] | None, measurement) -> FitResult:
+    from fitode.eqparse import analyse
     from fitode.interrupted import fitted, stage
+    from fitode.train.assess import assess
 
     # an interruption after training keeps the estimates: fitode.interrupted.Stopped carries them
     calibrating = bool(req.calibration)
@@ -207,6 +217,9 @@ def _calibrate(result: FitResult, req: FitRequest, analysis, time_offset: float)
         if c["converted"]:
             est = result.parameters[name]
             est.latent_value, est.value, est.std, est.calibrated = est.value, c["after"], c["std_after"], True
+            # in the units of --calibrate: the equation file's unit, not the measured path's px
+            spec = req.params.get(name)
+            est.unit = spec.unit if spec is not None else None
     result.calibration = {**cal.to_dict(), "lines": cal.lines(), "latent": cal.latent.tolist(),
                           "rollout": cal.rollout.tolist(), "time_offset": time_offset,
                           "ylabels": cal.ylabels(result.states)}

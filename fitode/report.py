@@ -17,7 +17,8 @@ result.json layout (every run of `fitode VIDEO ...` writes one):
                       wall_s, selected (histories are in fit.json, or history.json for a partial run)
     selected, best    which runs the estimates average, and the one whose latent is plotted
     settings          every training setting (TrainConfig fields, prior, train_fraction)
-    trajectory        time (s), latent and rollout (T x d) of the best run, train_frames;
+    trajectory        time (s), frames (the source video's frame numbers, as track.csv and track.png
+                      give them), latent and rollout (T x d) of the best run, train_frames;
                       physical units when calibrated
     plan              the choices of the fit (observation, encoder, window): value and reason each
     checks            the numbers behind the verdicts and every finding (fitode.train.assess)
@@ -88,7 +89,7 @@ def scale_dependent(analysis: Mapping | None, name: str) -> bool:
 def understanding_lines(ode, spec, analysis, clip, plan) -> list[str]:
     """What fitode understood, printed before it spends minutes training: the clip, the equation,
     what the video can measure, and the plan's choices with their reasons."""
-    from fitode import __version__
+    from fitode._version import __version__
     lines = [f"fitode {__version__}"]
     lines += _clip_lines(clip)
     n = int(clip.frames.shape[0])
@@ -122,7 +123,7 @@ def length_lines(observation) -> list[str]:
     if lengths.metres_per_px:
         return [f"lengths: in metres (x right, y up), {1000 * lengths.metres_per_px:.5g} mm per source pixel "
                 f"from --scale (±{100 * lengths.relative_std:.2g}%)"]
-    return ["lengths: in source pixels (x right, y up); constants in px and s (--scale gives metres)"]
+    return ["lengths: in source pixels (x right, y up), constants in units of px and s; --scale gives metres"]
 
 
 def _clip_lines(clip) -> list[str]:
@@ -138,7 +139,7 @@ def base_report(video, clip, ode, spec, analysis, plan, train_fraction: float, f
     options: the video flags as given (fps, start, end, roi, size, color, stride, mask, calibrate).
     t0: video time of the first frame used.
     """
-    from fitode import __version__
+    from fitode._version import __version__
     n = int(clip.frames.shape[0])
     units = {k: p.unit for k, p in (spec.parameters.items() if spec is not None else [])}
     return {

@@ -68,15 +68,48 @@ class RunRecord:
 
 @dataclass
 class FitResult:
-    """The outcome of `fitode.fit`.
+    """The outcome of a fit (fitode.fit returns it as a fitode.Result, which adds the table,
+    intervals at any level, a DataFrame, a figure and the output folder).
 
-    parameters: the estimate of each learnable constant (mean over the selected runs) and its
-        spread (standard deviation over the selected runs; 0 when only one was selected).
+    parameters: the estimate of each learnable constant (an Estimate: the mean over the selected
+        runs, their spread `std` (standard deviation over the selected runs, 0 for one: how alike
+        the restarts ended, no error bar), n_runs, unit, calibrated, latent_value and the 95%
+        `interval`, the uncertainty).
+    runs: every restart (RunRecord: where it started and ended, loss, steps, status, history).
     selected: indices of the runs the estimate comes from: the finite runs whose final loss is
         within `selection_factor` of the lowest final loss.
-    latent: (T, d) the best run's encoder applied to every frame, training range and beyond.
+    best: the selected run with the lowest loss: its latent, rollout and gauge are the ones kept.
+    latent: (T, d) the best run's reading of every frame (encoded or measured), training range and beyond.
     rollout: (T, d) the physics rollout from the first frames with the best run's constants.
     time: (T,) seconds from the first frame; frames at index >= train_frames were not trained on.
+    train_frames: the frames trained on (the first ones); dt: seconds between frames.
+    states: the equation's states in order; equation: its text; fixed: its fixed constants.
+    settings: the training options as resolved (TrainConfig.as_dict, plus the steps per frame a
+        measured path needed); selection_factor: a run within this factor of the lowest loss is selected.
+    meta: what the fit found out about the clip, by key (written by train.trainer.fit_frames unless said):
+        plan: the FitPlan's choices with their reasons; measured: the observation measures the
+        state (a path, not a learned latent); physical_units: every state is in a unit of its own
+        (radians, px or m), so no constant waits for a calibration; units: state -> the unit its
+        measured path was fitted in ("px", or "m" with a scale stick; {} for a learned latent);
+        length: how a length read (unit, frame_scale: source pixels per frame pixel,
+        metres_per_px and relative_std of a scale stick; None without units); subspace: the
+        observation's one-line note; rank: its input columns; gauge: state -> how it follows from
+        the latent; own_units: constants taken from the best run alone (each run read the path in
+        units of its own); left_out: run -> why it is not in the estimate; measurement: what was
+        measured, to draw (observe.drawing; in source pixels after pipeline.source_measurement);
+        stretch: the frames the path was fitted on and why (start_frame, end_frame, start_s,
+        end_s, reason, source); direct: the path was fitted directly (train/direct.py);
+        direct_failed: why not, where the encoder trained instead; trajectory: the measured and
+        fitted path on the stretch, the fit's values, errors and misfit (read by the interval);
+        interrupted: training was stopped (Ctrl-C); stopped: stopped after training
+        (fitode.interrupted); calibration_skipped: why --calibrate was not applied (fitode.api);
+        comparison: every candidate's numbers where several were compared (fitode.compare);
+        input: the clip as read (pipeline.run_video).
+    verdicts: name -> {"verdict": trusted | ambiguous | not trustworthy, "reason", "other_reasons"}.
+    checks: the numbers behind the verdicts (interval, consistency, integrator, every finding).
+    warnings: the assessment's findings that are no verdict's headline, and numpy's warnings.
+    notes: what happened to the restarts (left out, failed), no judgement.
+    calibration: the calibration applied (maps, converted constants, calibrated trajectories), or None.
     """
 
     parameters: dict[str, Estimate]

@@ -253,7 +253,7 @@ def _write_job_file(folder: Path, job: Job, outcome: JobOutcome) -> None:
              "manifest_row": job.where}
     if outcome.traceback:
         state["traceback"] = outcome.traceback
-    from fitode import __version__
+    from fitode._version import __version__
     state["fitode"] = __version__
     write_json(state, folder / JOB_FILE, default=str)  # default: a settings value JSON has no type for
 
