@@ -1,7 +1,7 @@
 """fitode: the unknown constants of a known ODE, from a video."""
 import os as _os
 
-__version__ = "0.1.0"
+from fitode._version import __version__  # noqa: E402,F401
 
 # FFmpeg inside OpenCV prints its own errors on stderr for unreadable files; fitode reports
 # those itself in one line, so silence it before any module opens a video.

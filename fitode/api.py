@@ -24,7 +24,6 @@ from fitode.train.observe import ObservationModel
 from fitode.train.plan import FitPlan, make_plan
 from fitode.train.result import FitResult
 from fitode.train.trainer import Callback, fit_frames
-from fitode.fitting import fit  # noqa: F401 - fitode.api.fit, as before
 
 
 @dataclass(frozen=True)
@@ -218,6 +217,9 @@ def _calibrate(result: FitResult, req: FitRequest, analysis, time_offset: float)
         if c["converted"]:
             est = result.parameters[name]
             est.latent_value, est.value, est.std, est.calibrated = est.value, c["after"], c["std_after"], True
+            # in the units of --calibrate: the equation file's unit, not the measured path's px
+            spec = req.params.get(name)
+            est.unit = spec.unit if spec is not None else None
     result.calibration = {**cal.to_dict(), "lines": cal.lines(), "latent": cal.latent.tolist(),
                           "rollout": cal.rollout.tolist(), "time_offset": time_offset,
                           "ylabels": cal.ylabels(result.states)}

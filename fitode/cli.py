@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
         print(_usage())
         return 0 if argv else 2
     if argv[0] == "--version":
-        from fitode import __version__
+        from fitode._version import __version__
         print(f"fitode {__version__}")
         return 0
     verb = argv[0] if argv[0] in VERBS else "run"

@@ -5,7 +5,6 @@ Torch-free at import (fitode.api, which needs torch, is imported when fit is cal
 """
 from __future__ import annotations
 
-import math
 import os
 from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
@@ -76,47 +75,32 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
     reqs = api.requests(eq=eq, system=system, eq_file=eq_file, const=const, free=free, init=init, params=params,
                         prior=prior, train_fraction=train_fraction, observe=observe, calibrate=calibrate, scale=scale,
                         **options)
-    req = reqs[0]
     video = dict(fps=fps, start=start, end=end, roi=roi, size=size, color=color, stride=stride, mask=mask)
-    clip = None
-    frames_path = frames
+    from fitode.interrupted import Stopped
+    from fitode.pipeline import fit_staged, measure_array, measure_clip, rate_std
+
+    # the one front door's stages, as `fitode VIDEO` and fitode batch run them
     if isinstance(frames, (str, os.PathLike)):
-        clip, dt, time_offset = _read_path(frames, video, dt, time_offset, req, progress)
-        frames = clip.frames
+        if time_offset:
+            raise ConfigError("time_offset is for frames given as an array; a path's first frame is at its start")
+        staged, rate = measure_clip(reqs, frames, _read_options(video), progress=progress, dt=dt), rate_std(fps)
     else:
         given = [k for k in VIDEO_OPTIONS if video[k] not in (None, False)]
         if given:
             raise ConfigError(f"{', '.join(given)}: video options apply to a video path; frames given as an "
                               "array are used as they are (crop, resize or subsample them before)")
-    x = api.as_frames(frames)
-    from fitode.pipeline import rate_std
-    rate = rate_std(fps) if clip is not None else 0.0  # an array's dt is the user's
-    track = None if clip is None else clip.track
-    from fitode.measurement import geometry
-    where = None if clip is None else geometry(clip)
-    plan = api.plan(req, x, dt, track=track, geometry=where)
-    if clip is not None:  # as `fitode VIDEO` reads it: light from sRGB in colour, a level in more detail
-        from fitode.pipeline import read_again
-        clip, time_offset, plan = read_again(frames_path, _read_options(video), req, clip, time_offset, plan,
-                                             progress=progress)
-        x, track, where = api.as_frames(clip.frames), clip.track, geometry(clip)
-    measurement = api.measure(plan, x)  # what cannot be measured fails before any fit
-    if len(reqs) > 1:
-        from fitode.compare import compare
-        comparison = compare(reqs, x, dt, track=track, geometry=where, time_offset=time_offset, callback=callback, progress=progress,
-                             rate_std=rate, first_plan=plan)
-        result = comparison.result
+        staged, rate = measure_array(reqs, frames, dt, time_offset), 0.0  # an array's dt is the user's
+    try:
+        result, _, _, comparison = fit_staged(reqs, staged, rate=rate, callback=callback, progress=progress)
+    except Stopped as stop:  # Ctrl-C after training: the estimates, marked (result.meta["stopped"])
+        if len(reqs) > 1:
+            raise
+        result, comparison = stop.result, None
+        if staged.clip is not None:
+            from fitode.pipeline import source_measurement
+            source_measurement(result, staged.clip)
+    if comparison is not None:
         result.meta["comparison"] = comparison.to_dict()
-    else:
-        from fitode.interrupted import Stopped
-        try:
-            result = api.execute(req, plan, x, time_offset=time_offset, callback=callback, progress=progress,
-                                 rate_std=rate, measurement=measurement)
-        except Stopped as stop:  # Ctrl-C after training: the estimates, marked (result.meta["stopped"])
-            result = stop.result
-    if clip is not None:  # what was measured, in the video's pixels as `fitode VIDEO` writes it
-        from fitode.pipeline import source_measurement
-        source_measurement(result, clip)
     from fitode.result import Result
     return Result.of(result)
 
@@ -125,19 +109,6 @@ def _terminal() -> bool:
     """stderr is a terminal, or a Jupyter kernel draws the bars (its stderr is no tty)."""
     import sys
     return bool(getattr(sys.stderr, "isatty", lambda: False)()) or "ipykernel" in sys.modules
-
-
-def _read_path(path, video: dict[str, Any], dt, time_offset, req, progress: bool):
-    """The clip, dt and time offset of a video path, read as `fitode VIDEO` reads it."""
-    from fitode.pipeline import read_clip
-
-    if time_offset:
-        raise ConfigError("time_offset is for frames given as an array; a path's first frame is at its start")
-    clip, t0 = read_clip(path, _read_options(video), req.calibration, progress=progress)
-    if dt is not None and not (isinstance(dt, (int, float)) and math.isclose(dt, clip.dt, rel_tol=1e-6)):
-        raise ConfigError(f"dt={dt!r} disagrees with the clip's {clip.dt:g} s (stride {clip.stride} / "
-                          f"{clip.fps:g} fps); leave dt out for a path, or set fps")
-    return clip, float(clip.dt), t0
 
 
 def _read_options(video: dict[str, Any]):

@@ -10,7 +10,6 @@ estimates.csv (the estimates wherever a fit finished) and whatever plots its dat
 """
 from __future__ import annotations
 
-import datetime as _dt
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
@@ -18,9 +17,9 @@ from typing import Any, Callable, Iterable, Mapping
 from fitode.errors import FitodeError
 from fitode.interrupted import Stopped, mark_report, reached
 from fitode.measurement import geometry
+from fitode.output import _check_out_dir, _make_out_dir, _plots_for_result, _try_plot
 from fitode.train.history import History  # torch-free, like everything this module imports at the top
 
-RUNS_DIR = "fitode-runs"
 
 
 class RunInterrupted(KeyboardInterrupt):
@@ -71,6 +70,82 @@ def run_job(video: str | Path, out_dir: str | Path | None = None, *, progress: b
     return run_video(video, out_dir, read=read, fit=options, progress=progress, log=log, callback=callback)
 
 
+@dataclass
+class Staged:
+    """A clip read, planned and measured: what the fit takes (measure_clip, measure_array).
+
+    clip: the fitode.video.Clip read (None for frames given as an array); t0: the video time of
+    its first frame; frames: float (T, C, H, W); dt: seconds between them; plan: the first
+    candidate's FitPlan; measurement: its fitode.train.measure.Measurement; geometry: where the
+    frames lie in the source (fitode.measurement.FrameGeometry; None for an array)."""
+
+    clip: Any
+    t0: float
+    frames: Any
+    dt: float
+    plan: Any
+    measurement: Any
+    geometry: Any = None
+
+    @property
+    def track(self):
+        return None if self.clip is None else self.clip.track
+
+
+def measure_clip(reqs, video, read: ReadOptions, *, progress: bool = False, dt: float | None = None) -> Staged:
+    """read -> plan -> measure for a video path, as every front door does it (`fitode VIDEO`,
+    fitode.fit, fitode batch): the clip read again where the plan reads it better (read_again), and
+    what cannot be measured failing here, in one line, before any fit or output. dt: a dt the
+    caller was given, which must agree with the clip's."""
+    import math
+
+    from fitode import api
+    from fitode.errors import ConfigError
+
+    req = reqs[0]
+    clip, t0 = read_clip(video, read, req.calibration, progress=progress)
+    if dt is not None and not (isinstance(dt, (int, float)) and math.isclose(dt, clip.dt, rel_tol=1e-6)):
+        raise ConfigError(f"dt={dt!r} disagrees with the clip's {clip.dt:g} s (stride {clip.stride} / "
+                          f"{clip.fps:g} fps); leave dt out for a path, or set fps")
+    plan = api.plan(req, api.as_frames(clip.frames), clip.dt, track=clip.track, geometry=geometry(clip))
+    clip, t0, plan = read_again(video, read, req, clip, t0, plan, progress=progress)
+    frames = api.as_frames(clip.frames)
+    return Staged(clip, t0, frames, float(clip.dt), plan, api.measure(plan, frames), geometry(clip))
+
+
+def measure_array(reqs, frames, dt: float, time_offset: float = 0.0) -> Staged:
+    """plan -> measure for frames given as an array (their pixels are the source's)."""
+    from fitode import api
+
+    x = api.as_frames(frames)
+    plan = api.plan(reqs[0], x, dt)
+    return Staged(None, float(time_offset), x, float(dt), plan, api.measure(plan, x))
+
+
+def fit_staged(reqs, staged: Staged, *, rate: float = 0.0, callback=None, progress: bool = False,
+               log: Callable[[str], None] | None = None):
+    """fit -> assess for a staged clip: (result, request, plan, comparison), the result of the one
+    candidate or of the one a comparison prefers (fitode.compare; comparison None for one), what
+    was measured mapped to the source's pixels where there is a clip."""
+    from fitode import api
+
+    comparison = None
+    if len(reqs) > 1:
+        from fitode.compare import compare
+        comparison = compare(reqs, staged.frames, staged.dt, track=staged.track, geometry=staged.geometry,
+                             time_offset=staged.t0, callback=callback, progress=progress, rate_std=rate, log=log,
+                             first_plan=staged.plan)
+        chosen = comparison.candidates[comparison.chosen]
+        result, req, plan = chosen.result, chosen.request, chosen.plan
+    else:
+        req, plan = reqs[0], staged.plan
+        result = api.execute(req, plan, staged.frames, time_offset=staged.t0, callback=callback, progress=progress,
+                             rate_std=rate, measurement=staged.measurement)
+    if staged.clip is not None:  # what was measured, in the video's pixels
+        source_measurement(result, staged.clip)
+    return result, req, plan, comparison
+
+
 def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: ReadOptions = ReadOptions(),
               fit: Mapping[str, Any], progress: bool = False, log: Callable[[str], None] | None = print,
               callback=None) -> RunOutcome:
@@ -100,13 +175,9 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     ode, spec = req.system, req.spec
     analysis = rep.analysis_dict(rep.identifiability(ode))
 
-    clip, t0 = read_clip(video, read, req.calibration, progress=progress)
-    frames = api.as_frames(clip.frames)
-    plan = api.plan(req, frames, clip.dt, track=clip.track, geometry=geometry(clip))
-    clip, t0, plan = read_again(video, read, req, clip, t0, plan, progress=progress)
-    frames = api.as_frames(clip.frames)
-    # what cannot be measured fails here, in one line, before the header and the output folder
-    measurement = api.measure(plan, frames)
+    # read -> plan -> measure: what cannot be measured fails here, before the header and the folder
+    staged = measure_clip(reqs, video, read, progress=progress)
+    clip, t0, plan = staged.clip, staged.t0, staged.plan
     for line in rep.understanding_lines(ode, spec, analysis, clip, plan):
         say(line)
 
@@ -122,21 +193,13 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
 
     comparison = None
     try:
-        if len(reqs) > 1:
-            from fitode.compare import compare
-            comparison = compare(reqs, frames, clip.dt, track=clip.track, geometry=geometry(clip), time_offset=t0,
-                                 callback=recorder,
-                                 progress=progress, rate_std=rate_std(read.fps), log=say, first_plan=plan)
-            chosen = comparison.candidates[comparison.chosen]
-            result, req, plan = chosen.result, chosen.request, chosen.plan
-            if comparison.chosen:  # the report describes the candidate whose numbers it gives
-                ode, spec = req.system, req.spec
-                analysis = rep.analysis_dict(rep.identifiability(ode))
-                report = {**rep.base_report(video, clip, ode, spec, analysis, plan, req.train_fraction, folder,
-                                            options, t0), "created": report["created"]}
-        else:
-            result = api.execute(req, plan, frames, time_offset=t0, callback=recorder, progress=progress,
-                                 rate_std=rate_std(read.fps), measurement=measurement)
+        result, req, plan, comparison = fit_staged(reqs, staged, rate=rate_std(read.fps), callback=recorder,
+                                                   progress=progress, log=say)
+        if comparison is not None and comparison.chosen:  # the report describes the candidate whose numbers it gives
+            ode, spec = req.system, req.spec
+            analysis = rep.analysis_dict(rep.identifiability(ode))
+            report = {**rep.base_report(video, clip, ode, spec, analysis, plan, req.train_fraction, folder,
+                                        options, t0), "created": report["created"]}
     except KeyboardInterrupt as exc:
         if not (isinstance(exc, Stopped) and len(reqs) == 1):  # no fit finished (of a comparison: not all)
             stage = "training" if len(reqs) == 1 else "comparison"
@@ -145,12 +208,12 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
             say(f"interrupted: partial results in {folder}")
             raise
         result = exc.result  # the fit finished: its estimates are kept (fitode.interrupted)
+        source_measurement(result, clip)
     except FitodeError as exc:
         _write_partial(report, recorder, folder, "failed", str(exc), plots_done)
         raise
 
     interrupted = bool(result.meta.get("interrupted"))
-    source_measurement(result, clip)
     for line in rep.run_lines(result):
         say(line)
     for line in _slow_motion_hint(result, clip):
@@ -306,14 +369,22 @@ def plot_track(path: Path, result, clip, video, t0: float) -> Path:
     stretch = result.meta.get("stretch")
     lo, hi = (int(stretch["start_frame"]), int(stretch["end_frame"])) if stretch else (0, n)
     lo, hi = max(0, min(lo, n - 1)), max(1, min(hi, n))
-    idx = sorted({int(i) for i in np.linspace(lo, hi - 1, min(STILLS, hi - lo)).round()})
+    from fitode.video.stills import kept_stills, source_stills
+    want = min(STILLS, hi - lo)
+    # the frames the read kept at full resolution, where the stretch holds enough of them: no second decode
+    have = [i for i in range(lo, hi) if int(clip.frame_indices[i]) in (clip.stills or {})]
+    if len(have) >= min(want, 3):
+        idx = [have[j] for j in sorted({int(j) for j in np.linspace(0, len(have) - 1, min(want, len(have))).round()})]
+    else:
+        idx = sorted({int(i) for i in np.linspace(lo, hi - 1, want).round()})
     source = [int(clip.frame_indices[i]) for i in idx]
     h, w = clip.source_size
-    try:
-        from fitode.video.stills import source_stills
-        got = source_stills(video, source)
-    except Exception:  # noqa: BLE001 - a picture falls back to the frames the fit had
-        got = {}
+    got = kept_stills(clip.stills, source)
+    if len(got) < len(source):
+        try:
+            got = source_stills(video, source)
+        except Exception:  # noqa: BLE001 - a picture falls back to the frames the fit had
+            got = {}
     box = geometry(clip).box
     stills = {}
     for i, s in zip(idx, source):
@@ -352,63 +423,6 @@ def _read(video, **kw):
     return vid.read_video(path, **kw)
 
 
-def _check_out_dir(out_dir) -> Path | None:
-    """A given folder must be absent or empty; checked before any work so a clash costs nothing."""
-    if out_dir is None:
-        return None
-    p = Path(out_dir)
-    if p.exists():
-        if not p.is_dir():
-            raise FitodeError(f"--out {p}: exists and is not a folder")
-        if any(p.iterdir()):
-            raise FitodeError(f"--out {p}: folder exists and is not empty; fitode never overwrites a run, "
-                              "choose another folder")
-    check_writable(p)
-    return p
-
-
-def check_writable(p: Path) -> None:
-    """A folder can be made at p and written in: tried now (made and removed again), so an
-    unwritable place (/proc/x, a path through a file) costs no decode and no fit."""
-    made = [a for a in (p, *p.parents) if not a.exists()]
-    probe = p / ".fitode-write-check"
-    try:
-        p.mkdir(parents=True, exist_ok=True)
-        probe.touch()
-        probe.unlink()
-    except OSError as exc:
-        above = next((a for a in p.parents if a.exists()), None)
-        why = (f"{above} is a file, not a folder" if above is not None and not above.is_dir()
-               else exc.strerror or type(exc).__name__)
-        raise FitodeError(f"--out {p}: cannot write there ({why}); choose another folder") from None
-    finally:
-        for a in made:  # nothing is left behind until the fit writes its folder
-            try:
-                a.rmdir()
-            except OSError:
-                break
-
-
-def _make_out_dir(target: Path | None, stem: str) -> Path:
-    if target is not None:
-        target.mkdir(parents=True, exist_ok=True)
-        if any(target.iterdir()):  # something appeared while the video was read
-            raise FitodeError(f"--out {target}: folder is no longer empty; choose another folder")
-        return target
-    base = Path(RUNS_DIR)
-    base.mkdir(parents=True, exist_ok=True)
-    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in stem) or "video"
-    for n in range(1, 10000):
-        p = base / (f"{safe}-{stamp}" if n == 1 else f"{safe}-{stamp}-{n}")
-        try:
-            p.mkdir()  # atomic: two runs started in the same second get different folders
-            return p
-        except FileExistsError:
-            continue
-    raise FitodeError(f"could not make a new folder under {base}")
-
-
 class _Recorder:
     """Keeps every step's numbers so an interrupted or failed fit still leaves its history."""
 
@@ -427,44 +441,6 @@ class _Recorder:
 
     def rows(self) -> list[dict[str, Any]]:
         return [{**self.runs[k], "history": self.runs[k]["history"].to_dict()} for k in sorted(self.runs)]
-
-
-def _try_plot(fn, path: Path, *args, plots_done: list[str], **kw) -> str | None:
-    """A plot that cannot be drawn must not lose the numbers: report it as a warning instead."""
-    try:
-        fn(path, *args, **kw)
-    except Exception as exc:  # noqa: BLE001 - matplotlib can fail in many ways; the fit is what matters
-        return f"could not draw {path.name}: {type(exc).__name__}: {exc}"
-    plots_done.append(path.name)
-    return None
-
-
-def _plots_for_result(folder: Path, result, report, plots_done: list[str], t0: float) -> list[str]:
-    from dataclasses import asdict
-
-    import numpy as np
-
-    from fitode import plots
-    runs = [asdict(r) for r in result.runs]
-    for r in runs:
-        r["selected"] = r["index"] in result.selected
-        r["best"] = r["index"] == result.best
-    estimates = {k: v["value"] for k, v in report["parameters"].items()}
-    units = {k: v.get("unit") for k, v in report["parameters"].items()}
-    latent, rollout, ylabels = result.latent, result.rollout, plots.state_labels(result)
-    if result.calibration is not None:
-        latent, rollout = np.asarray(result.calibration["latent"]), np.asarray(result.calibration["rollout"])
-        ylabels = result.calibration["ylabels"]
-    shown = plots.params_view(result, report["parameters"])
-    warnings = [
-        _try_plot(plots.plot_latent, folder / "latent.png", result.time + t0, latent, rollout, result.train_frames,
-                  result.states, window=int(result.settings.get("window", 0)) or None, ylabels=ylabels,
-                  angles=plots.angle_states(result), plots_done=plots_done),
-        _try_plot(plots.plot_params, folder / "params.png", runs, estimates, units=units, **shown,
-                  plots_done=plots_done),
-        _try_plot(plots.plot_loss, folder / "loss.png", runs, plots_done=plots_done),
-    ]
-    return [w for w in warnings if w]
 
 
 def _write_partial(report: dict, recorder: _Recorder, folder: Path, status: str, why: str,

@@ -89,7 +89,7 @@ def scale_dependent(analysis: Mapping | None, name: str) -> bool:
 def understanding_lines(ode, spec, analysis, clip, plan) -> list[str]:
     """What fitode understood, printed before it spends minutes training: the clip, the equation,
     what the video can measure, and the plan's choices with their reasons."""
-    from fitode import __version__
+    from fitode._version import __version__
     lines = [f"fitode {__version__}"]
     lines += _clip_lines(clip)
     n = int(clip.frames.shape[0])
@@ -123,7 +123,7 @@ def length_lines(observation) -> list[str]:
     if lengths.metres_per_px:
         return [f"lengths: in metres (x right, y up), {1000 * lengths.metres_per_px:.5g} mm per source pixel "
                 f"from --scale (±{100 * lengths.relative_std:.2g}%)"]
-    return ["lengths: in source pixels (x right, y up); constants in px and s (--scale gives metres)"]
+    return ["lengths: in source pixels (x right, y up), constants in units of px and s; --scale gives metres"]
 
 
 def _clip_lines(clip) -> list[str]:
@@ -139,7 +139,7 @@ def base_report(video, clip, ode, spec, analysis, plan, train_fraction: float, f
     options: the video flags as given (fps, start, end, roi, size, color, stride, mask, calibrate).
     t0: video time of the first frame used.
     """
-    from fitode import __version__
+    from fitode._version import __version__
     n = int(clip.frames.shape[0])
     units = {k: p.unit for k, p in (spec.parameters.items() if spec is not None else [])}
     return {

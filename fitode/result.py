@@ -132,7 +132,7 @@ class Result(FitResult):
         loss.png (track.png and frames.png need the video: `fitode VIDEO` draws them). The folder
         must not exist or be empty: nothing is overwritten. Returns the folder."""
         from fitode import report as rep
-        from fitode.pipeline import _check_out_dir, _plots_for_result
+        from fitode.output import _check_out_dir, _plots_for_result
         from fitode.tables import write_run_tables
         target = _check_out_dir(folder)
         target.mkdir(parents=True, exist_ok=True)
@@ -159,7 +159,7 @@ def _t0(result: FitResult) -> float:
 
 def report_of(result: FitResult) -> dict[str, Any]:
     """result.json's content for a result without the command line's header (fitode.report)."""
-    from fitode import __version__
+    from fitode._version import __version__
     from fitode import report as rep
     from fitode.interrupted import mark_report
     try:

@@ -106,6 +106,13 @@ def test_csv_manifest_types_paths_and_precedence(tmp_path):
     assert c.kwargs == {"eq": EQ, "stride": "auto", "restarts": 2, "max_steps": 7}
 
 
+def test_a_manifest_scale_column_reaches_the_fit(tmp_path):
+    _video(tmp_path, "a.json", gamma=1)
+    m = _csv(tmp_path, [f"a.json,{EQ},\"10,20,410,20=1.0±0.01\""], header="video,eq,scale")
+    job, = load_manifest(m).jobs
+    assert job.kwargs["scale"] == "10,20,410,20=1.0±0.01"
+
+
 def test_toml_manifest_defaults_and_tables(tmp_path):
     _video(tmp_path, "a.json", gamma=1)
     _video(tmp_path, "b.json", gamma=1)
@@ -150,6 +157,7 @@ seed = 4
     ("video,eq,name", f"a.json,{EQ},summary.csv", "column 'name': 'summary.csv' is the name of one of the batch's"),
     ("video,eq,start,end", f"a.json,{EQ},3,2", "column 'end': end 2 s is not after start 3 s"),
     ("eq", EQ, "videos.csv line 1: the header has no 'video' column"),
+    ("video,eq,scale", f"a.json,{EQ},\"1,2,3=4\"", "column 'scale': --scale: '1,2,3' has 3 numbers"),
 ])
 def test_manifest_errors_name_row_and_column(tmp_path, header, row, message):
     _video(tmp_path, "a.json", gamma=1)

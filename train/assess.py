@@ -148,8 +148,10 @@ def _identifiability(name: str, analysis, calibrated: set[str], physical_units: 
     if name in calibrated or physical_units:
         return []
     if c.scale == "dependent":
-        return [Finding("not trustworthy", "its value depends on the latent's arbitrary units; give --calibrate "
-                        "with known values of the state", (name,))]
+        # only a learned latent has arbitrary units: a measured path is in px, m or radians
+        return [Finding("not trustworthy", "its value depends on the free encoder's arbitrary units; measure the "
+                        "state (--observe position, level, size) or give --calibrate with known values of it",
+                        (name,))]
     if c.scale == "free-small-amplitude" and not _gauge_scaled(result):
         return [Finding("ambiguous", "scale-free only for small amplitudes: with large swings the latent's "
                         "arbitrary scale biases it; calibrate the state to be sure", (name,))]

@@ -19,6 +19,7 @@ from fitode.errors import TrainingError
 from .config import ENCODER_NAMES, MIN_WINDOW, TrainConfig, resolve_encoder
 from .window import resolve_window
 from .observe import ObservationModel, resolve_observation
+from .threads import torch_threads
 
 CHOICES = ("observation", "encoder", "window")  # the choices a plan records, in the order they are printed
 
@@ -114,8 +115,9 @@ def make_plan(system: OdeSystem, params: Mapping[str, ParamSpec], frames: torch.
     _check_length(system, config, n_frames, n_train)
     if track is not None and len(track) != n_frames:
         track = None  # frames cut or subsampled after reading: the track is not theirs
-    observation = resolve_observation(observe, system, frames[:n_train], config.light, config.encoder,
-                                      source=observe_source, track=track, n_train=n_train)
+    with torch_threads(config.threads):
+        observation = resolve_observation(observe, system, frames[:n_train], config.light, config.encoder,
+                                          source=observe_source, track=track, n_train=n_train)
     if lengths is not None:  # how a measured length reads in px or metres (observe.base.Lengths)
         observation.use_lengths(lengths)
     config, encoder_reason = resolve_encoder(config, system, observation)

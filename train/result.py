@@ -82,13 +82,29 @@ class FitResult:
     latent: (T, d) the best run's reading of every frame (encoded or measured), training range and beyond.
     rollout: (T, d) the physics rollout from the first frames with the best run's constants.
     time: (T,) seconds from the first frame; frames at index >= train_frames were not trained on.
-    train_frames: how many leading frames were fitted. dt: seconds between frames.
-    states: the equation's state names, one per latent column. equation: the equation's text.
-    fixed: the constants held fixed (g) and their values. settings: every training setting as used.
-    selection_factor: the loss ratio that selects restarts (above).
-    meta: what the fit found on its way: the plan, the measurement record (`measurement`), the
-        stretch fitted, the comparison of candidate equations, `interrupted` and `stopped`
-        (fitode.interrupted: the stage a Ctrl-C stopped in and the checks left undone).
+    train_frames: the frames trained on (the first ones); dt: seconds between frames.
+    states: the equation's states in order; equation: its text; fixed: its fixed constants.
+    settings: the training options as resolved (TrainConfig.as_dict, plus the steps per frame a
+        measured path needed); selection_factor: a run within this factor of the lowest loss is selected.
+    meta: what the fit found out about the clip, by key (written by train.trainer.fit_frames unless said):
+        plan: the FitPlan's choices with their reasons; measured: the observation measures the
+        state (a path, not a learned latent); physical_units: every state is in a unit of its own
+        (radians, px or m), so no constant waits for a calibration; units: state -> the unit its
+        measured path was fitted in ("px", or "m" with a scale stick; {} for a learned latent);
+        length: how a length read (unit, frame_scale: source pixels per frame pixel,
+        metres_per_px and relative_std of a scale stick; None without units); subspace: the
+        observation's one-line note; rank: its input columns; gauge: state -> how it follows from
+        the latent; own_units: constants taken from the best run alone (each run read the path in
+        units of its own); left_out: run -> why it is not in the estimate; measurement: what was
+        measured, to draw (observe.drawing; in source pixels after pipeline.source_measurement);
+        stretch: the frames the path was fitted on and why (start_frame, end_frame, start_s,
+        end_s, reason, source); direct: the path was fitted directly (train/direct.py);
+        direct_failed: why not, where the encoder trained instead; trajectory: the measured and
+        fitted path on the stretch, the fit's values, errors and misfit (read by the interval);
+        interrupted: training was stopped (Ctrl-C); stopped: stopped after training
+        (fitode.interrupted); calibration_skipped: why --calibrate was not applied (fitode.api);
+        comparison: every candidate's numbers where several were compared (fitode.compare);
+        input: the clip as read (pipeline.run_video).
     verdicts: name -> {"verdict": trusted | ambiguous | not trustworthy, "reason", "other_reasons"}.
     checks: the numbers behind the verdicts (interval, consistency, integrator, every finding).
     warnings: the assessment's findings that are no verdict's headline, and numpy's warnings.

@@ -174,7 +174,7 @@ def _claim(out_dir: Path, man: Manifest, dry_run: bool):
         raise FitodeError(f"{out_dir} is not empty and is not a fitode batch folder (no {MARKER}); "
                           "choose another --out")
     if not out_dir.is_dir():
-        from fitode.pipeline import check_writable
+        from fitode.output import check_writable
         check_writable(out_dir)  # /proc/x, a path through a file: one line before any job
     if dry_run:
         return None
@@ -256,7 +256,7 @@ def _write_job_file(folder: Path, job: Job, outcome: JobOutcome) -> None:
              "manifest_row": job.where}
     if outcome.traceback:
         state["traceback"] = outcome.traceback
-    from fitode import __version__
+    from fitode._version import __version__
     state["fitode"] = __version__
     write_json(state, folder / JOB_FILE, default=str)  # default: a settings value JSON has no type for
 

@@ -131,7 +131,7 @@ def radius_error(xy: np.ndarray, centre: np.ndarray, radius: float, scale: float
     together (inf where neither can be made), and the centre's covariance widened by the same
     factor over least squares' (None where there is no Jacobian):
     - along the arc: least squares' error (the Jacobian's, times the scatter) widened by the
-      misses' correlation time along the arc (interval.correlation_time of the distances sorted
+      misses' correlation time along the arc (residuals.correlation_time of the distances sorted
       by angle): a slanted swing or a bob whose look turns with the angle
       misses the circle alike at neighbouring places, however far apart in time;
     - in time: a delete-a-block jackknife over JACKKNIFE_BLOCKS stretches of the path: a miss that
@@ -139,7 +139,7 @@ def radius_error(xy: np.ndarray, centre: np.ndarray, radius: float, scale: float
       less of the arc bends the arc it is read on.
     A fixed count of CORRELATED points per independent miss made the real apple's radius 9.2%
     uncertain, where its jackknife says 2.1% and its misses along the arc 3.2%."""
-    from fitode.train.interval import correlation_time
+    from ..residuals import correlation_time
 
     error, cov = np.inf, None
     if jac is not None:
