@@ -260,10 +260,10 @@ def run_scene(name: str, seed: int) -> list[dict[str, Any]]:
     axis = 1 if sc["kind"] == "drain" else None  # a level is its row
     rows = []
     obj, chosen, how = track_object(sc["frames"])
-    for tracker, path in (("change", track_change(sc["frames"])), ("object", obj), ("reader", chosen)):
+    for tracker, path in (("change", track_change(sc["frames"])), ("object", obj), ("choice", chosen)):
         e = errors(path, truth, axis)
         c = constant(sc, path)
-        rows.append({"source": f"{name} (seed {seed})", "tracker": tracker, **e, "how": how if tracker == "reader" else "",
+        rows.append({"source": f"{name} (seed {seed})", "tracker": tracker, **e, "how": how if tracker == "choice" else "",
                      "constant": label, "value": c, "truth": value, "off": (c - value) / value,
                      "limit": LIMIT.get(name, 0.3)})
     return rows
@@ -289,11 +289,11 @@ def run_real(name: str, folder: Path) -> list[dict[str, Any]]:
     del frames
     rows = []
     obj, chosen, how = track_object(gray)
-    for tracker, p in (("change", track_change(gray)), ("object", obj), ("reader", chosen)):
+    for tracker, p in (("change", track_change(gray)), ("object", obj), ("choice", chosen)):
         e = errors(p, truth, offset=True)
         raw = errors(p, truth)
         rows.append({"source": name, "tracker": tracker, **e, "raw_rms": raw["rms"], "limit": 1.0,
-                     "how": how if tracker == "reader" else "",
+                     "how": how if tracker == "choice" else "",
                      "constant": "", "value": math.nan, "truth": math.nan, "off": math.nan})
     return rows
 
@@ -308,8 +308,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    names = bc.pick(args.scenes, list(SCENES), "--scenes")
+    names = ["hand"] if args.quick else bc.pick(args.scenes, list(SCENES), "--scenes")
     seeds = [int(s) for s in str(args.seeds).split(",") if s.strip()]
+    if args.quick:  # one short generated scene, no real clip
+        args.no_real, seeds = True, seeds[:1]
     t_all = time.perf_counter()
     rows: list[dict[str, Any]] = []
     for name in names:

@@ -445,7 +445,7 @@ AGREE_PX = 1.0  # ... within this many pixels (or 3 of its standard errors) of t
 
 
 def choose(stack: np.ndarray, paths: np.ndarray, found=None) -> tuple[np.ndarray, str]:
-    """Which track a reader would take, and how it was made (bench/tracking.py's "reader" row; the
+    """Which track a reader would take, and how it was made (bench/tracking.py's "choice" row; the
     reader itself, fitode.video.track, still takes the change detector's everywhere: on the shared
     real clips this rule took the object tracker for the bob, the drop and the bouncing ball, and
     the drop's g went from 10.16 to 14.45). The change detector's strongest path where it
