@@ -1,13 +1,27 @@
-"""speed_clip: a fit of a real clip against the time the same machine takes to decode it.
+"""speed_clip: where the time of `fitode CLIP` goes, against the time the same machine takes to decode the clip.
 
-Issue 21's speed line: `fitode pendulum_bob_L062.mp4 --system pendulum` should finish in at most 3x
-the time it takes to decode the clip. Side by side, each as a process of its own after a warm-up read:
-the decode (Python, its imports and fitode.video.read_video with the command's defaults: stride
-auto, short side 64, gray), then the whole command (`python -m fitode CLIP ARGS --quiet`: decode,
-plan, fit, assessment, plots, result.json), each --reps times alternating, so a busy machine slows both alike; the load average is printed beside
-them (the machine is shared: trust the ratio of minima more than either time).
+Issue 33's speed lines: the bob clip (`fitode pendulum_bob_L062.mp4 --system pendulum`) within 2x
+its decode, and a 60-frame 240 fps clip's whole process under 4 s. For each clip, side by side, each
+as a process of its own after a warm-up read: the decode (Python, its imports and
+fitode.video.read_video with the command's defaults: stride auto, short side 64, gray), then the
+whole command (`python -m fitode CLIP ARGS --quiet`), its stages timed inside the process:
 
-    python bench/speed_clip.py                                  # the bob clip, --system pendulum
+- start-up: from the process's launch to the command's first step (Python, fitode's imports, the
+  flags);
+- read and measure: decoding the clip and resolving the plan (the observation read from the frames,
+  a finer re-read), with the imports they pull in (torch, OpenCV);
+- fit: the restarts (a measured path's direct fit, or the encoder's training) and the measurement's checks;
+- intervals: the bootstrap of every constant's interval;
+- assessment: the calibration where asked and the verdicts;
+- pictures: the plots (track.png, frames.png, latent.png, params.png, loss.png);
+- the rest: what none of these holds (printing, result.json, the tables).
+
+Each pair runs --reps times alternating, so a busy machine slows both alike; the load average is
+printed beside them (the machine is shared: trust the ratio of minima more than either time).
+The short clip is generated here (`fitode synth scene throw --fps 240`, 60 frames, 320x240, a
+seeded throw) into a temporary folder; the project ships no camera clip.
+
+    python bench/speed_clip.py                                  # the bob clip and a 240 fps throw
     python bench/speed_clip.py --clip X.mp4 --args "--system pendulum --observe position"
 
 Prints one table; writes <out>/speed_clip.json.
@@ -29,19 +43,34 @@ import common as bc  # noqa: E402
 
 from fitode.errors import FitodeError  # noqa: E402
 
-CLIP = Path(__file__).resolve().parents[1].parent / "shared" / "realvideos" / "pendulum_bob_L062.mp4"
+# the shared real clips beside the checkout (a worktree sits one folder deeper than the main one)
+CLIP = next((p / "shared" / "realvideos" / "pendulum_bob_L062.mp4" for p in Path(__file__).resolve().parents
+             if (p / "shared" / "realvideos").is_dir()), Path("pendulum_bob_L062.mp4"))
+SHORT = "throw 240 fps"  # the generated clip's name in --clip
+# the stages, each the functions whose calls it sums (module, attribute); the first match of a name is patched
+STAGES = {
+    "read and measure": [("fitode.pipeline", "_read"), ("fitode.api", "plan"), ("fitode.api", "measure")],
+    "fit": [("fitode.api", "fit_frames")],
+    "intervals": [("fitode.api", "_intervals")],
+    "assessment": [("fitode.api", "_calibrate"), ("fitode.train.assess", "assess")],
+    "pictures": [("fitode.pipeline", "_try_plot")],
+}
+COLUMNS = ["start-up", *STAGES, "the rest"]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     bc.add_common_arguments(parser, workers=None)
-    parser.add_argument("--clip", default=str(CLIP), help=f"the video (default {CLIP})")
-    parser.add_argument("--args", default="--system pendulum", help="the command's flags (default: --system pendulum)")
+    parser.add_argument("--clip", action="append",
+                        help=f"a video (repeatable; default: {CLIP.name} and a generated 60-frame {SHORT} clip)")
+    parser.add_argument("--args", action="append",
+                        help="the command's flags, one per --clip (default: --system pendulum; the short clip's: "
+                             "--system throw)")
     parser.add_argument("--reps", type=int, default=1, help="alternating repetitions (default 1)")
 
 
-def _timed(cmd: list[str]) -> float:
+def _run(cmd: list[str], env: dict | None = None) -> float:
     t0 = time.perf_counter()
-    done = subprocess.run(cmd, capture_output=True, text=True)
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env)
     if done.returncode != 0:
         raise FitodeError(f"{' '.join(cmd[:4])} ... failed: {(done.stderr or done.stdout).strip()[-300:]}")
     return time.perf_counter() - t0
@@ -49,45 +78,118 @@ def _timed(cmd: list[str]) -> float:
 
 def _decode(clip: str) -> float:
     """The decode as a process of its own (Python, imports and the read, as the command pays them)."""
-    return _timed([sys.executable, "-c", f"from fitode.video import read_video; read_video({clip!r}, stride='auto')"])
+    return _run([sys.executable, "-c", f"from fitode.video import read_video; read_video({clip!r}, stride='auto')"])
 
 
-def _fit(clip: str, argv: list[str], out: Path) -> tuple[float, dict]:
-    wall = _timed([sys.executable, "-m", "fitode", clip, *argv, "--quiet", "--out", str(out)])
+def _fit(clip: str, argv: list[str], out: Path) -> tuple[float, dict, dict]:
+    """The whole command in a process of its own, its stages timed inside it (_driver)."""
+    stages = out.with_suffix(".stages.json")
+    env = {**os.environ, "SPEED_CLIP_STAGES": str(stages), "SPEED_CLIP_LAUNCH": repr(time.time())}
+    wall = _run([sys.executable, __file__, "--driver", clip, *argv, "--quiet", "--out", str(out)], env)
+    times = json.loads(stages.read_text())
     res = json.loads((out / "result.json").read_text())
-    return wall, {"values": {k: v["value"] for k, v in res.get("parameters", {}).items()},
-                  "verdicts": {k: v.get("verdict") for k, v in res.get("parameters", {}).items()},
-                  "observation": res.get("plan", {}).get("observation", {}).get("value")}
+    return wall, times, {"values": {k: v["value"] for k, v in res.get("parameters", {}).items()},
+                         "verdicts": {k: v.get("verdict") for k, v in res.get("parameters", {}).items()},
+                         "observation": res.get("plan", {}).get("observation", {}).get("value")}
+
+
+def _driver(argv: list[str]) -> int:
+    """`fitode ARGV` in this process with each stage's functions timed; writes the times
+    (seconds, and start-up from the launch time the parent passed) to $SPEED_CLIP_STAGES."""
+    import importlib
+
+    entered = time.time()
+    spent = {name: 0.0 for name in STAGES}
+    depth, first = [0], []
+
+    def timed(stage, fn):
+        def wrapper(*args, **kw):
+            if depth[0]:  # a stage inside another (a plot inside the pictures) counts once
+                return fn(*args, **kw)
+            first.append(first[0] if first else time.time())
+            depth[0] += 1
+            t0 = time.perf_counter()
+            try:
+                return fn(*args, **kw)
+            finally:
+                spent[stage] += time.perf_counter() - t0
+                depth[0] -= 1
+        return wrapper
+    for stage, where in STAGES.items():
+        for module, name in where:
+            mod = importlib.import_module(module)
+            if hasattr(mod, name):
+                setattr(mod, name, timed(stage, getattr(mod, name)))
+    from fitode.cli import main
+    try:
+        code = main(argv)
+    finally:
+        done = time.time()
+        launch = float(os.environ.get("SPEED_CLIP_LAUNCH", entered))
+        # start-up: the launch to the first stage (Python, the imports, the flags)
+        Path(os.environ["SPEED_CLIP_STAGES"]).write_text(json.dumps(
+            {"start-up": (first[0] if first else done) - launch, **spent, "whole_in_process": done - entered}))
+    return int(code or 0)
+
+
+def _short_clip(folder: Path) -> Path:
+    path = folder / "throw240.mp4"
+    _run([sys.executable, "-m", "fitode", "synth", "scene", "throw", "--fps", "240", "--duration", "0.25",
+          "--size", "320x240", "--seed", "3", "--out", str(path)])
+    return path
 
 
 def run(args: argparse.Namespace) -> int:
-    clip = str(args.clip)
-    if not Path(clip).is_file():
-        print(f"skip: {clip} not found")
-        return 0
-    argv = shlex.split(args.args)
-    _decode(clip)  # warm-up: the codec and the imports in the file cache
-    decode, fits, last = [], [], {}
+    if args.clip:
+        flags = (args.args or []) + ["--system pendulum"] * (len(args.clip) - len(args.args or []))
+        pairs = list(zip(args.clip, flags))
+    else:  # the bob clip (with --args where given) and the short clip
+        pairs = [(str(CLIP), (args.args or ["--system pendulum"])[0]), (SHORT, "--system throw")]
+    rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for rep in range(max(1, args.reps)):
-            decode.append(_decode(clip))
-            wall, last = _fit(clip, argv, Path(tmp) / f"run{rep}")
-            fits.append(wall)
-    load = os.getloadavg()
-    record = {"clip": clip, "args": argv, "decode_s": decode, "fit_s": fits, "ratio": min(fits) / min(decode),
-              "load": list(load), "result": last, "machine": bc.machine_info()}
+        for clip, argv in pairs:
+            name = clip
+            if clip == SHORT:
+                clip = str(_short_clip(Path(tmp)))
+            elif not Path(clip).is_file():
+                print(f"skip: {clip} not found")
+                continue
+            argv = shlex.split(argv)
+            _decode(clip)  # warm-up: the codec and the imports in the file cache
+            decode, fits, stages, last = [], [], [], {}
+            for rep in range(max(1, args.reps)):
+                decode.append(_decode(clip))
+                wall, times, last = _fit(clip, argv, Path(tmp) / f"{len(rows)}-run{rep}")
+                fits.append(wall)
+                stages.append(times)
+            best = min(range(len(fits)), key=fits.__getitem__)
+            times = stages[best]
+            times["the rest"] = max(0.0, fits[best] - times["start-up"] - sum(times[s] for s in STAGES))
+            rows.append({"clip": Path(name).name, "args": argv, "decode_s": decode, "fit_s": fits,
+                         "stages_s": {c: times[c] for c in COLUMNS}, "ratio": min(fits) / min(decode),
+                         "load": list(os.getloadavg()), "result": last})
+    record = {"clips": rows, "machine": bc.machine_info()}
     return bc.report_and_write(record, args.out, "speed_clip", _print)
 
 
 def _print(record) -> None:
-    rows = [{"clip": Path(record["clip"]).name, "args": " ".join(record["args"]),
-             "decode s": f"{min(record['decode_s']):.2f}", "command s": f"{min(record['fit_s']):.2f}",
-             "ratio": f"{record['ratio']:.1f}x", "load (1/5/15 min)": " ".join(f"{x:.1f}" for x in record["load"])}]
+    rows = []
+    for r in record["clips"]:
+        row = {"clip": r["clip"], "decode s": f"{min(r['decode_s']):.2f}", "command s": f"{min(r['fit_s']):.2f}",
+               "ratio": f"{r['ratio']:.1f}x"}
+        row.update({c: f"{r['stages_s'][c]:.2f}" for c in COLUMNS})
+        row["load (1/5/15 min)"] = " ".join(f"{x:.1f}" for x in r["load"])
+        rows.append(row)
+    if not rows:
+        return
     print(bc.format_table(rows, [(k, k) for k in rows[0]]))
-    res = record["result"]
-    print(f"observation {res.get('observation')}; "
-          + ", ".join(f"{k} = {v:.5g} ({res['verdicts'].get(k)})" for k, v in res.get("values", {}).items()))
+    for r in record["clips"]:
+        res = r["result"]
+        print(f"{r['clip']} ({' '.join(r['args'])}): observation {res.get('observation')}; "
+              + ", ".join(f"{k} = {v:.5g} ({res['verdicts'].get(k)})" for k, v in res.get("values", {}).items()))
 
 
 if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "--driver":
+        sys.exit(_driver(sys.argv[2:]))
     sys.exit(bc.script_main(__doc__, add_arguments, run))

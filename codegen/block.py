@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from typing import Mapping, Sequence
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -14,7 +15,7 @@ from .errors import NonFiniteError, ParameterError
 from .guard import explain_nonfinite
 from .integrators import get_integrator
 from .layout import StateLayout
-from .source import compile_system, generate_source
+from .source import compile_numpy, compile_system, generate_source
 
 
 class PhysicsBlock(nn.Module):
@@ -59,6 +60,7 @@ class PhysicsBlock(nn.Module):
             raise ParameterError(f"substeps must be at least 1, not {substeps}")
         self.system = system
         self.field = compile_system(system)
+        self._numpy_field = None
         self.layout: StateLayout = self.field.layout
         self.integrator_name = get_integrator(integrator).name
         self.integrator = get_integrator(integrator)(self.layout)
@@ -144,6 +146,11 @@ class PhysicsBlock(nn.Module):
         """Current values of the learnable constants (0-d tensors, or (R,) with restarts; in the
         autograd graph)."""
         return {n: rep.value(self._raw(n)) for n, rep in self._reparams.items()}
+
+    def values_of(self, parameters: Mapping[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """The learnable constants' values for raw parameters named as named_parameters() names
+        them (each of any shape: one value per rollout of a batch), without restarts."""
+        return {n: rep.value(parameters[self._param_attr[n]]) for n, rep in self._reparams.items()}
 
     def fixed_constants(self) -> dict[str, float]:
         lay = self.layout
@@ -319,6 +326,28 @@ class PhysicsBlock(nn.Module):
         if self.check_finite and not bool(torch.isfinite(out).all()):
             raise self.explain(zh, n_frames, dt)
         return out if self.restarts is not None else out.reshape(*lead, n_frames, self.dim)
+
+    def rollout_numpy(self, z_head: np.ndarray, n_frames: int, dt: float, values: Sequence) -> np.ndarray:
+        """forward() in NumPy without gradients, for many sets of constants at once: z_head
+        (B, n_context, dim), values the learnable constants' values in the layout's order, each a
+        number or a (B,) array (one per window). (B, n_frames, dim), non-finite where a rollout
+        leaves the equation's domain (the caller checks)."""
+        if self.initial_state_mode == "learnable":
+            raise ParameterError("a NumPy rollout needs an initial state from differences")
+        anchor, dt = self.scheme.anchor, float(dt)
+        if n_frames < anchor + 1:
+            raise ValueError(f"n_frames = {n_frames}: the rollout starts at frame {anchor}")
+        zh = np.asarray(z_head, dtype=np.float64)[:, :self.n_context]
+        weights = np.array([[wj / dt ** k for wj in row] for k, row in enumerate(self.scheme.weights)])
+        y0 = (weights @ zh).reshape(len(zh), -1)[:, self._slot_src]
+        consts = tuple(values) + tuple(self.fixed_values.tolist())
+        if self._numpy_field is None:  # compiled on first use: the training never asks for it
+            self._numpy_field = compile_numpy(self.system)
+        fn = self._numpy_field
+        with np.errstate(all="ignore"):  # a rollout that leaves the domain is the caller's finding, not a warning
+            traj = self.integrator.rollout(lambda y: fn(y, *consts), y0, n_frames - anchor, dt, self.substeps)
+        pred = traj if len(self._value_slots) == traj.shape[-1] else traj[..., self._value_slots]
+        return np.concatenate([zh[:, :anchor], pred], axis=1) if anchor else pred
 
     def explain(self, z_head: torch.Tensor, n_frames: int, dt: float, restart: int | None = None) -> NonFiniteError:
         """What went non-finite in the rollout of these windows (of one restart, with restarts)."""

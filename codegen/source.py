@@ -20,6 +20,7 @@ from typing import Callable
 import sympy
 import torch
 from sympy.printing.codeprinter import PrintMethodNotImplementedError
+from sympy.printing.numpy import NumPyPrinter
 from sympy.printing.pytorch import TorchPrinter
 
 from fitode.eqparse import OdeSystem
@@ -28,8 +29,8 @@ from .errors import CodegenError
 from .layout import StateLayout
 
 
-class _Printer(TorchPrinter):
-    """TorchPrinter with our identifiers and numeric folding."""
+class _Idents:
+    """Our identifiers and numeric folding, for either target's printer."""
 
     def __init__(self, idents: dict[sympy.Symbol, str]):
         super().__init__()
@@ -49,6 +50,14 @@ class _Printer(TorchPrinter):
             return self._print(sympy.Float(value, 17))
         return None
 
+    def _print_Pow(self, expr):
+        folded = self._fold(expr)
+        return folded if folded is not None else super()._print_Pow(expr)
+
+
+class _Printer(_Idents, TorchPrinter):
+    """TorchPrinter with our identifiers and numeric folding."""
+
     def _print_Function(self, expr):
         folded = self._fold(expr)
         if folded is not None:
@@ -57,9 +66,14 @@ class _Printer(TorchPrinter):
             raise CodegenError(f"function {type(expr).__name__} has no torch translation")
         return super()._print_Function(expr)
 
-    def _print_Pow(self, expr):
+
+class _NumpyPrinter(_Idents, NumPyPrinter):
+    """NumPyPrinter with our identifiers and numeric folding (the same field for a fitter that
+    needs no gradients: a NumPy operation on a few hundred numbers costs a fraction of a torch one)."""
+
+    def _print_Function(self, expr):
         folded = self._fold(expr)
-        return folded if folded is not None else super()._print_Pow(expr)
+        return folded if folded is not None else super()._print_Function(expr)
 
 
 @dataclass
@@ -92,10 +106,10 @@ class VectorField:
         return self._subterms
 
 
-def _printer(layout: StateLayout) -> _Printer:
+def _printer(layout: StateLayout, cls: type = _Printer):
     idents = {s.symbol: s.ident for s in layout.slots}
     idents.update({sympy.Symbol(n): i for n, i in zip(layout.constants, layout.const_idents)})
-    return _Printer(idents)
+    return cls(idents)
 
 
 def _header(layout: StateLayout, system_lines: list[str], fixed: dict[str, float]) -> list[str]:
@@ -113,10 +127,10 @@ def _header(layout: StateLayout, system_lines: list[str], fixed: dict[str, float
     return lines
 
 
-def _body(layout: StateLayout) -> str:
-    printer = _printer(layout)
+def _body(layout: StateLayout, numpy: bool = False) -> str:
+    printer = _printer(layout, _NumpyPrinter if numpy else _Printer)
     args = ", ".join(("state",) + layout.const_idents)
-    unpack = ", ".join(s.ident for s in layout.slots) + ("," if layout.n_slots == 1 else "")
+    unpack = ", ".join(s.ident for s in layout.slots) + ("," if layout.n_slots == 1 and not numpy else "")
     top = list(layout.top_slots)
     # Only the highest derivatives carry real expressions; the rest are slot copies.
     exprs = [layout.derivatives[i] for i in top]
@@ -128,7 +142,8 @@ def _body(layout: StateLayout) -> str:
 
     lines = [f"def vector_field({args}):",
              f'    """d(state)/dt for states of shape (..., {layout.n_slots}); constants broadcast."""',
-             f"    {unpack} = state.unbind(-1)"]
+             f"    {unpack} = " + (", ".join(f"state[..., {i}]" for i in range(layout.n_slots)) if numpy
+                                    else "state.unbind(-1)")]
     for sym, expr in replacements:
         lines.append(f"    {sym} = {printer.doprint(expr)}")
     idents = [s.ident for s in layout.slots]
@@ -142,11 +157,16 @@ def _body(layout: StateLayout) -> str:
         text = printer.doprint(expr)
         # A right-hand side without any state (x'' = -g) must still have the batch shape.
         if not _depends_on(expr, state_syms, replacements):
-            text = f"torch.zeros_like(state[..., 0]) + ({text})"
+            text = f"{'numpy' if numpy else 'torch'}.zeros_like(state[..., 0]) + ({text})"
         lines.append(f"    {name} = {text}  # {slot.state}{chr(39) * (slot.k + 1)}")
         results[i] = name
     derivs = [results[i] if i in results else idents[i + 1] for i in range(layout.n_slots)]
-    lines.append(f"    return torch.stack(({', '.join(derivs)}{',' if len(derivs) == 1 else ''}), -1)")
+    if numpy:  # filled in place: numpy.stack's own checks cost more than the field on a few hundred numbers
+        lines.append("    out = numpy.empty(state.shape)")
+        lines += [f"    out[..., {i}] = {d}" for i, d in enumerate(derivs)]
+        lines.append("    return out")
+    else:
+        lines.append(f"    return torch.stack(({', '.join(derivs)}{',' if len(derivs) == 1 else ''}), -1)")
     return "\n".join(lines)
 
 
@@ -204,6 +224,27 @@ def compile_system(system: OdeSystem) -> VectorField:
     vf = VectorField(layout, source, fn, filename, system)
     _CACHE[key] = vf
     return vf
+
+
+_NUMPY: dict[str, Callable] = {}
+
+
+def compile_numpy(system: OdeSystem) -> Callable:
+    """The same vector field as NumPy code, `fn(state, *constants)` on arrays (..., n_slots) with
+    constants that broadcast against the batch; compiled once per normalised equation. For a
+    rollout that needs no gradients (the trajectory fitter, the interval's refits)."""
+    key = _normal_key(system)
+    fn = _NUMPY.get(key)
+    if fn is None:
+        layout = StateLayout.from_system(system)
+        try:
+            body = _body(layout, numpy=True)
+        except PrintMethodNotImplementedError as exc:
+            raise CodegenError(f"no NumPy translation: {str(exc).splitlines()[0]}") from None
+        fn, _ = _exec("\n".join(["import math", "import numpy", "", ""]) + body + "\n", "numpy:" + key,
+                      "vector_field")
+        _NUMPY[key] = fn
+    return fn
 
 
 def _smoke_test(fn: Callable, layout: StateLayout) -> None:

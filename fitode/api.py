@@ -131,10 +131,21 @@ def execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_of
     a dt or --fps the user gave; fitode.train.interval.RATE_CONTAINER_STD for a container's).
     stretch: the frames a measured path is fitted on, as fitode.train.trainer.fit_frames takes it;
     measurement: the plan's Measurement (fitode.train.measure), made by `measure` before."""
-    from fitode.eqparse import analyse
-    from fitode.train.assess import assess
+    from fitode.numeric_warnings import kept
 
+    with kept() as numeric:  # numpy's overflow warnings become the result's warnings, not terminal noise
+        result = _execute(req, fit_plan, frames, time_offset=time_offset, callback=callback, progress=progress,
+                          rate_std=rate_std, stretch=stretch, measurement=measurement)
+    result.warnings += numeric.lines()
+    return result
+
+
+def _execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_offset: float,
+             callback: Callback | None, progress: bool, rate_std: float,
+             stretch: tuple[int, int] | None, measurement) -> FitResult:
+    from fitode.eqparse import analyse
     from fitode.interrupted import fitted, stage
+    from fitode.train.assess import assess
 
     # an interruption after training keeps the estimates: fitode.interrupted.Stopped carries them
     calibrating = bool(req.calibration)

@@ -28,7 +28,7 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
         scale=None, fps: float | None = None, start: float | None = None, end: float | None = None,
         roi: tuple[int, int, int, int] | str | None = None, size: tuple[int, int] | str | None = None,
         color: bool = False, stride: int | str | None = None, mask: str | None = None,
-        time_offset: float = 0.0, callback: Callback | None = None, progress: bool = True,
+        time_offset: float = 0.0, callback: Callback | None = None, progress: bool | None = None,
         **options: Any) -> Result:
     """Estimate the learnable constants of an equation from a video or a frame sequence.
 
@@ -60,12 +60,16 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
         gives the same numbers, as `fitode VIDEO` with the same flags.
     time_offset: video time of the first frame, for calibrate's times (frames only: a path's
         comes from start).
+    progress: progress bars on stderr; None (the default): only where stderr is a terminal or a
+        notebook shows them, never into a log file or a pipe; True or False: as asked.
     options: any TrainConfig field (restarts, max_steps, min_steps, window, integrator, encoder,
         light, seed, device, threads, lr, ...).
     Every bad option raises a fitode.ConfigError (or another FitodeError) naming it, before any work.
     """
     from fitode import api
 
+    if progress is None:
+        progress = _terminal()
     if (start is not None or end is not None) and "stretch" not in options:
         options["stretch"] = False  # the user chose the frames: no stretch is looked for
     reqs = api.requests(eq=eq, system=system, eq_file=eq_file, const=const, free=free, init=init, params=params,
@@ -99,6 +103,12 @@ def fit(frames: Any, dt: float | None = None, *, eq: str | Sequence[str] | None 
         result.meta["comparison"] = comparison.to_dict()
     from fitode.result import Result
     return Result.of(result)
+
+
+def _terminal() -> bool:
+    """stderr is a terminal, or a Jupyter kernel draws the bars (its stderr is no tty)."""
+    import sys
+    return bool(getattr(sys.stderr, "isatty", lambda: False)()) or "ipykernel" in sys.modules
 
 
 def _read_options(video: dict[str, Any]):

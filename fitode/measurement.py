@@ -9,6 +9,8 @@ size and the crop. A record already in source pixels (a full-resolution tracker'
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -163,10 +165,14 @@ def _measured(m: Mapping[str, Any], how: str, track, n: int):
     if how == "angle" and m.get("pivot") is not None:
         pivot = np.asarray(m["pivot"], float)
         radius = float(m.get("radius") or np.nanmedian(np.hypot(*(track - pivot).T)))
-        # 0 straight below the pivot, positive towards the image's +x
-        degrees = np.degrees(np.arctan2(track[:, 0] - pivot[0], track[:, 1] - pivot[1]))
-        return (degrees, "angle from straight down (degrees)", same,
-                lambda v: pivot + radius * np.stack([np.sin(np.radians(v)), np.cos(np.radians(v))], axis=1))
+        # the fit's own angle (fitode.train.observe.angle.angles), so that track.png shows the sign and zero
+        # of latent.png and track.csv: from the direction it hangs in, growing clockwise on screen (image
+        # axes, y down); a record without that direction hangs straight down
+        hang = float(m["hanging"]) if m.get("hanging") is not None else math.pi / 2
+        raw = np.arctan2(track[:, 1] - pivot[1], track[:, 0] - pivot[0]) - hang
+        degrees = np.degrees((raw + math.pi) % (2 * math.pi) - math.pi)
+        return (degrees, "angle from where it hangs (degrees;\nas the fit's: clockwise on screen)", same,
+                lambda v: pivot + radius * np.stack([np.cos(hang + np.radians(v)), np.sin(hang + np.radians(v))], axis=1))
     return None
 
 

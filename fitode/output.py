@@ -22,11 +22,11 @@ def _check_out_dir(out_dir) -> Path | None:
         if any(p.iterdir()):
             raise FitodeError(f"--out {p}: folder exists and is not empty; fitode never overwrites a run, "
                               "choose another folder")
-    _check_writable(p)
+    check_writable(p)
     return p
 
 
-def _check_writable(p: Path) -> None:
+def check_writable(p: Path) -> None:
     """A folder can be made at p and written in: tried now (made and removed again), so an
     unwritable place (/proc/x, a path through a file) costs no decode and no fit."""
     made = [a for a in (p, *p.parents) if not a.exists()]

@@ -222,6 +222,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     for line in (result.calibration or {}).get("lines", []):
         say(line)
     rep.complete_report(report, result, analysis, t0)
+    # the source video's frame numbers, as track.png labels them (repeats dropped, holes filled)
+    report["trajectory"]["frames"] = [int(f) for f in clip.frame_indices]
     if comparison is not None:
         report["comparison"] = comparison.to_dict()
         result.meta["comparison"] = report["comparison"]
@@ -367,14 +369,22 @@ def plot_track(path: Path, result, clip, video, t0: float) -> Path:
     stretch = result.meta.get("stretch")
     lo, hi = (int(stretch["start_frame"]), int(stretch["end_frame"])) if stretch else (0, n)
     lo, hi = max(0, min(lo, n - 1)), max(1, min(hi, n))
-    idx = sorted({int(i) for i in np.linspace(lo, hi - 1, min(STILLS, hi - lo)).round()})
+    from fitode.video.stills import kept_stills, source_stills
+    want = min(STILLS, hi - lo)
+    # the frames the read kept at full resolution, where the stretch holds enough of them: no second decode
+    have = [i for i in range(lo, hi) if int(clip.frame_indices[i]) in (clip.stills or {})]
+    if len(have) >= min(want, 3):
+        idx = [have[j] for j in sorted({int(j) for j in np.linspace(0, len(have) - 1, min(want, len(have))).round()})]
+    else:
+        idx = sorted({int(i) for i in np.linspace(lo, hi - 1, want).round()})
     source = [int(clip.frame_indices[i]) for i in idx]
     h, w = clip.source_size
-    try:
-        from fitode.video.stills import source_stills
-        got = source_stills(video, source)
-    except Exception:  # noqa: BLE001 - a picture falls back to the frames the fit had
-        got = {}
+    got = kept_stills(clip.stills, source)
+    if len(got) < len(source):
+        try:
+            got = source_stills(video, source)
+        except Exception:  # noqa: BLE001 - a picture falls back to the frames the fit had
+            got = {}
     box = geometry(clip).box
     stills = {}
     for i, s in zip(idx, source):
@@ -389,7 +399,8 @@ def plot_track(path: Path, result, clip, video, t0: float) -> Path:
     return plots.plot_track(path, m, stills, np.asarray(result.time) + t0,
                             readings=readings(m, result.latent, result.rollout, result.states),
                             stretch=stretch, train_frames=result.train_frames,
-                            calibrated={s: (v["a"], v["b"]) for s, v in maps.items()})
+                            calibrated={s: (v["a"], v["b"]) for s, v in maps.items()},
+                            source_frames=[int(f) for f in clip.frame_indices])
 
 
 def _slow_motion_hint(result, clip) -> list[str]:

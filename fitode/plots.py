@@ -341,7 +341,8 @@ NO_PLACE = {
 
 def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: Mapping[int, tuple[np.ndarray, Sequence[float]]],
                time: Sequence[float], *, readings: Sequence[Any] = (), stretch: Mapping[str, Any] | None = None,
-               train_frames: int | None = None, calibrated: Mapping[str, tuple[float, float]] | None = None) -> Path:
+               train_frames: int | None = None, calibrated: Mapping[str, tuple[float, float]] | None = None,
+               source_frames: Sequence[int] | None = None) -> Path:
     """Sample frames with what was measured drawn on them, and each measured reading over time.
 
     measurement: the record of result.json's "measurement" (source pixels); stills: {frame of the
@@ -349,7 +350,9 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
     time of every frame of the clip; readings: fitode.measurement.readings (measured and fitted
     reading per state); stretch: the stretch record (frames of the clip, end exclusive), shaded;
     calibrated: {state: (A, B)}, the calibration's state = A * latent + B, for a second axis in the
-    calibrated units where a reading is affine in the latent.
+    calibrated units where a reading is affine in the latent. source_frames: (T,) the source
+    video's index of every frame of the clip, as track.csv's `frame` numbers them (None: the
+    clip's own index).
     """
     plt = _plt()
     m = dict(measurement or {})
@@ -386,7 +389,8 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
         ax.set_ylim(shown[3], shown[1])
         where = "" if stretch is None else ("(in the stretch)" if inside[i] else "(outside the stretch)")
         # a narrow column (a tall view: a fall's strip) has no room for the title on one line
-        parts = [f"t = {t[i]:.2f} s", f"frame {i}"] + ([where] if where else [])
+        frame = int(source_frames[i]) if source_frames is not None else i
+        parts = [f"t = {t[i]:.2f} s", f"frame {frame}"] + ([where] if where else [])
         ax.set_title(("\n" if width / cols < 3.2 else "  ").join(parts), fontsize=8)
         ax.tick_params(labelsize=6)
         if k == 0:

@@ -17,7 +17,8 @@ result.json layout (every run of `fitode VIDEO ...` writes one):
                       wall_s, selected (histories are in fit.json, or history.json for a partial run)
     selected, best    which runs the estimates average, and the one whose latent is plotted
     settings          every training setting (TrainConfig fields, prior, train_fraction)
-    trajectory        time (s), latent and rollout (T x d) of the best run, train_frames;
+    trajectory        time (s), frames (the source video's frame numbers, as track.csv and track.png
+                      give them), latent and rollout (T x d) of the best run, train_frames;
                       physical units when calibrated
     plan              the choices of the fit (observation, encoder, window): value and reason each
     checks            the numbers behind the verdicts and every finding (fitode.train.assess)

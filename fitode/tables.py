@@ -96,10 +96,13 @@ def track_csv(report: Mapping[str, Any]) -> str | None:
     fps, stride = inp.get("fps"), int(inp.get("stride") or 1)
     first = int(round(float(inp.get("first_frame_time_s") or 0.0) * fps)) if fps else 0
     keys, measured = _measured(report, len(traj["time"]))
+    frames = traj.get("frames")  # the source's numbers where the reader kept them (fitode.pipeline)
+    if not (isinstance(frames, list) and len(frames) == len(traj["time"])):
+        frames = [first + i * stride for i in range(len(traj["time"]))]
     table = []
     for i, (t, z, r) in enumerate(zip(traj["time"], traj["latent"], traj["rollout"])):
         resid = [_minus(a, b) for a, b in zip(z, r)]
-        table.append([t, first + i * stride, *z, *r, *resid, *(measured[i] if keys else [])])
+        table.append([t, frames[i], *z, *r, *resid, *(measured[i] if keys else [])])
     return csv_text(track_header(states, keys, traj.get("state_units")), table)
 
 

@@ -300,6 +300,17 @@ def test_out_dir_must_be_a_batch_folder(tmp_path):
     assert run_batch(m, runner=RUNNER, log=None, workers=1).reused == ["001-a"]  # released
 
 
+@pytest.mark.parametrize("where", ["/proc/fitode-batch", "a.json/sub"])
+def test_an_unwritable_out_is_one_line_before_any_job(where, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _video(tmp_path, "a.json", gamma=0.5)
+    m = _csv(tmp_path, [f"a.json,A,{EQ},"])
+    before = sorted(p.name for p in tmp_path.iterdir())
+    with pytest.raises(FitodeError, match=f"--out {where}: cannot write there"):
+        run_batch(m, where, runner=RUNNER, log=None, workers=1)
+    assert sorted(p.name for p in tmp_path.iterdir()) == before  # no job ran, nothing was made
+
+
 class _InterruptAfterOne:
     """An executor whose user presses Ctrl-C after the first job finishes."""
 

@@ -139,14 +139,20 @@ def test_an_angle_record_is_read_in_degrees_and_drawn_about_its_pivot(tmp_path):
     from types import SimpleNamespace
 
     from fitode import plots
-    theta = 0.3 * np.cos(np.linspace(0, 12, 80))  # radians, 0 straight down
-    pivot, radius = np.array([120.0, -40.0]), 150.0
-    track = pivot + radius * np.stack([np.sin(theta), np.cos(theta)], axis=1)
+    from fitode.train.observe.angle import angles
+    from fitode.train.observe.circle import fit_circle
+    theta = 0.3 * np.cos(np.linspace(0, 12, 80))  # radians, from the direction it hangs in
+    pivot, radius, hang = np.array([120.0, -40.0]), 150.0, np.pi / 2 + 0.05  # hangs a little off straight down
+    track = pivot + radius * np.stack([np.cos(hang + theta), np.sin(hang + theta)], axis=1)
+    # the observation reads this track as theta, sign and zero: the picture must read it the same
+    read, hung = angles(track, fit_circle(track))
+    assert np.allclose(read, theta, atol=2e-3) and hung == pytest.approx(hang, abs=2e-3)  # its hang: from the turns
     m = {"kind": "angle", "space": "source", "states": {"theta": "angle"}, "pivot": list(pivot), "radius": radius,
-         "track": track.tolist(), "source_size": [240, 160], "crop": [0, 0, 240, 160]}
+         "hanging": hang, "track": track.tolist(), "source_size": [240, 160], "crop": [0, 0, 240, 160]}
     (reading,) = readings(m, theta[:, None], theta[:, None], ["theta"])
     assert np.allclose(reading.measured, np.degrees(theta)) and np.allclose(reading.fitted, np.degrees(theta))
     assert np.abs(reading.points - track).max() < 1e-6
+    assert reading.measured[0] > 0 and track[0, 0] < pivot[0] + radius * np.cos(hang)  # positive: clockwise, left
     img = np.zeros((160, 240, 3))
     path = plots.plot_track(tmp_path / "track.png", m, {0: (img, (-0.5, 239.5, 159.5, -0.5))}, np.arange(80) * 0.05,
                             readings=[reading])

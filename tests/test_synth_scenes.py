@@ -138,3 +138,17 @@ def test_cli_scene(tmp_path, capsys):
     assert rec["truth"] == {"gamma": 0.46, "c": 0.0} and rec["settings"]["size"] == [90, 160]
     assert "gamma = 0.46" in capsys.readouterr().out
     assert main(["synth", "scene", "led", "--out", str(out)]) == 2
+
+
+def test_spring_scene_knows_where_its_can_is_and_draws_legs_behind_it():
+    from fitode.synth.scenes import scene
+
+    plain = scene("spring", 18.0, seed=3, fps=10.0, duration=1.0, size=(120, 160), distractors=0)
+    legs = scene("spring", 18.0, seed=3, fps=10.0, duration=1.0, size=(120, 160), distractors=0, legs=2)
+    assert legs.pixels.shape == (legs.n_frames, 2)
+    np.testing.assert_allclose(legs.pixels, plain.pixels)
+    gray = legs.frames.astype(float).mean(axis=3)
+    for i, (x, y) in enumerate(np.round(legs.pixels).astype(int)):
+        assert gray[i, y, x] < gray[i, 5, 5] - 30  # the can, darker than the wall, where the truth says
+    # the legs: much darker pixels than anything in the plain scene, and only there
+    assert (gray < plain.frames.astype(float).mean(axis=3).min() - 20).any()

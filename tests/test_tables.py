@@ -36,7 +36,7 @@ def test_estimates_columns_and_values():
     rows = _rows(estimates_csv(_report()))
     assert tuple(rows[0]) == ESTIMATE_COLUMNS
     L, k = rows
-    assert (L["constant"], float(L["value"]), float(L["std"]), L["unit"], L["calibrated"], L["verdict"],
+    assert (L["constant"], float(L["value"]), float(L["restart_spread"]), L["unit"], L["calibrated"], L["verdict"],
             L["reason"]) == ("L", 0.25073, 0.001, "m", "False", "trusted", "the restarts agree")
     assert L["interval_low"] == L["interval_high"] == ""
     assert (float(k["interval_low"]), float(k["interval_high"]), k["calibrated"]) == (1.2, 1.8, "True")
@@ -55,7 +55,7 @@ def test_track_columns_frames_and_residuals():
 def test_nan_is_written_empty(tmp_path):
     assert write_run_tables(_report(), tmp_path) == ["estimates.csv", "track.csv"]
     k = _rows((tmp_path / "estimates.csv").read_text())[1]
-    assert k["std"] == ""
+    assert k["restart_spread"] == ""
 
 
 @pytest.mark.slow  # a tiny fit, about 3 s
@@ -74,7 +74,7 @@ def test_a_run_folder_holds_both_tables_equal_to_result_json(tmp_path):
     for e in est:
         p = report["parameters"][e["constant"]]
         assert float(e["value"]) == p["value"]
-        assert e["std"] == ("" if p["std"] is None else repr(p["std"]))  # null in result.json: an empty cell
+        assert e["restart_spread"] == ("" if p["std"] is None else repr(p["std"]))  # null in result.json: an empty cell
         assert (e["verdict"], e["reason"], e["calibrated"]) == (p["verdict"], p["verdict_reason"], str(p["calibrated"]))
     track = _rows((out.out_dir / "track.csv").read_text())
     traj = report["trajectory"]

@@ -102,3 +102,27 @@ def test_segments_of_a_coarse_second_order_path_are_the_whole_trajectory():
     for n in ("g0", "g1"):
         assert pieces.values[n] == pytest.approx(whole.values[n], rel=1e-6)
     assert pieces.misfit < 1e-6
+
+
+def test_levenberg_marquardt_stops_at_its_bound_and_says_it_did_not_settle(monkeypatch):
+    # the bundled example read as a position (`--observe position`): a tracker that jumps between
+    # two places, which no pendulum follows; the steps crept down a wrong basin for minutes. The
+    # solver's work is bounded: counted here in the rollouts it asks for, not in seconds
+    from fitode.codegen import PhysicsBlock
+    from fitode.eqparse import ParamSpec
+    from fitode.train.trajectory import TRIALS_PER_STEP, long_options
+    rollouts = []
+    real = PhysicsBlock.rollout_numpy
+    monkeypatch.setattr(PhysicsBlock, "rollout_numpy", lambda self, *a, **k: rollouts.append(1) or real(self, *a, **k))
+    system = parse("theta'' = -g/L*theta - zeta*theta'")
+    params = {"L": ParamSpec(init=1.0, min=0.0), "zeta": ParamSpec(init=0.1, min=0.0)}
+    x = np.array([-0.483, 0.286, 0.834, 0.923, 0.879, 0.892, 0.873, 0.178, 0.374, 0.354, 1.019, 0.927, 0.911, 0.942,
+                  0.915, 0.551, 0.264, 0.757, 0.969, 0.907, 0.906, 0.869, 0.177, 0.377, 0.35, 0.951, 0.94, 0.946,
+                  0.967, 0.889, 0.346, -0.629, -1.171, -1.491, -1.494, -1.497, -1.536, -1.089, -0.531])[:, None]
+    bound = 12
+    fit = fit_trajectory(system, params, x, 1 / 15, {"L": 0.27, "zeta": 11.5}, iterations=bound,
+                         **long_options(len(x)))
+    assert fit is not None and not fit.converged  # it gives up, and the record says it did not settle
+    assert fit.steps <= bound and fit.rollouts <= TRIALS_PER_STEP * bound
+    # every rollout is the start, a step's Jacobian (one batched rollout), a trial, or the summary's few
+    assert len(rollouts) <= 1 + fit.steps + fit.rollouts + 4

@@ -14,6 +14,8 @@ from fitode.errors import ConfigError
 
 from .observe.catalog import CHOICES
 
+MIN_WINDOW = 3  # the fewest frames a training window has
+
 ENCODER_NAMES = ("mlp", "cnn", "linear")
 ENCODER_CHOICES = ("auto",) + ENCODER_NAMES  # auto: linear where a free encoder could report any rate
 # what the camera measures about the state: the catalog of train/observe (torch-free); auto: chosen from the
@@ -89,8 +91,8 @@ class TrainConfig:
             _int_at_least(name, getattr(self, name), 0)
         if self.window is not None:
             _positive_int("window", self.window)
-        if self.window is not None and self.window < 3:
-            raise ConfigError(f"window must be at least 3 frames, got {self.window}")
+        if self.window is not None and self.window < MIN_WINDOW:
+            raise ConfigError(f"window must be at least {MIN_WINDOW} frames, got {self.window}")
         if self.batch_windows is not None:
             _positive_int("batch_windows", self.batch_windows)
         if self.threads is not None:

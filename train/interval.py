@@ -189,7 +189,7 @@ def t_quantile(level: float, dof: int) -> float:
 
 class _Batch:
     """Rollouts of one trajectory of the equation for many (constants, starting frames) at once:
-    the block's restart axis carries every draw and every finite-difference column, so that a
+    every draw and every finite-difference column is one row of a single NumPy rollout, so that a
     Gauss-Newton step for all draws is one rollout (a refit one by one with L-BFGS took 8 s for
     300 frames here; 64 draws at once take about as long as one)."""
 
@@ -201,27 +201,21 @@ class _Batch:
         self.system, self.params, self.dt = system, params, float(dt)
         self.integrator, self.substeps = integrator, substeps
         self.names = list(system.learnable)
-        probe = PhysicsBlock(system, params, integrator=integrator, substeps=substeps, dtype=torch.float64)
-        self.nc, self.T, self.k = probe.n_context, x.shape[0], x.shape[1]
+        self.block = PhysicsBlock(system, params, integrator=integrator, substeps=substeps, dtype=torch.float64,
+                                  check_finite=False)
+        self.nc, self.T, self.k = self.block.n_context, x.shape[0], x.shape[1]
         self.m = len(self.names)
         self.p = self.m + self.nc * self.k
         self.weight = 1.0 / np.maximum(x.std(axis=0), 1e-24)  # every state counts equally, as fit_trajectory's
 
     def roll(self, theta: np.ndarray, dt: float | None = None, frames: int | None = None) -> np.ndarray:
         """(N, T, k) trajectories for theta (N, p) = constants then starting frames; NaN where a
-        rollout leaves the equation's domain."""
-        import torch
-
-        from fitode.codegen import PhysicsBlock
-
+        rollout leaves the equation's domain. A constant at or beyond its bound is moved just
+        inside it (codegen.Reparam.clip); one that is not a number is a ParameterError."""
         n = len(theta)
-        block = PhysicsBlock(self.system, self.params, integrator=self.integrator, substeps=self.substeps,
-                             dtype=torch.float64, restarts=n, check_finite=False)
-        block.set_constants({name: theta[:, i].tolist() for i, name in enumerate(self.names)}, clip=True)
-        head = torch.as_tensor(theta[:, self.m:].reshape(n, 1, self.nc, self.k))
-        with torch.no_grad():
-            out = block(head, frames or self.T, self.dt if dt is None else dt)[:, 0]
-        return out.numpy()
+        values = [_inside(self.block, name, theta[:, i]) for i, name in enumerate(self.names)]
+        head = theta[:, self.m:].reshape(n, self.nc, self.k)
+        return self.block.rollout_numpy(head, frames or self.T, self.dt if dt is None else dt, values)
 
     def steps(self, theta: np.ndarray) -> np.ndarray:
         """Finite-difference steps (N, p): relative for the constants, a millionth of each
@@ -309,6 +303,23 @@ class _Batch:
         return theta
 
 
+def _inside(block, name: str, v: np.ndarray) -> np.ndarray:
+    """v moved strictly inside the constant's bounds, as codegen.Reparam.clip moves one value."""
+    from fitode.codegen import ParameterError
+    v = np.asarray(v, dtype=np.float64)
+    if not np.all(np.isfinite(v)):
+        raise ParameterError(f"{name}: a value is not finite")
+    lo, hi = block.bounds(name)
+    if lo is not None and hi is not None:
+        margin = 1e-6 * (hi - lo)
+        return np.clip(v, lo + margin, hi - margin)
+    if lo is not None:
+        return np.where(v <= lo, lo + 1e-6 * max(1.0, abs(lo)), v)
+    if hi is not None:
+        return np.where(v >= hi, hi - 1e-6 * max(1.0, abs(hi)), v)
+    return v
+
+
 def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping[str, float], *,
               iterations: int = ITERATIONS, seed: int = 0, integrator: str = "rk4", substeps: int = 1,
               refit_iterations: int = REFIT_ITERATIONS, level: float = LEVEL,
@@ -324,27 +335,29 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
     if not np.all(np.isfinite(x)):
         return None
     try:
-        batch = _Batch(system, params, x, dt, integrator, substeps)
-        if batch.T < batch.nc + 2 * batch.p:
-            return None
-        theta0 = np.concatenate([[float(values[n]) for n in batch.names], x[: batch.nc].reshape(-1)])[None]
-        centre = batch.gauss_newton(theta0, x[None], CENTRE_ITERATIONS)
-        if not np.all(np.isfinite(centre)):
-            return None
-        fitted = batch.roll(centre)[0]
-        resid = x - fitted
-        block = block_length(resid)
-        rng = np.random.default_rng(seed)
-        targets = np.stack([fitted + resample_blocks(resid, block, rng) for _ in range(iterations)])
-        draws = batch.chord(centre, targets, refit_iterations)
-        draws = draws[np.all(np.isfinite(draws), axis=1)]
-        if len(draws) < max(2, MIN_KEPT * iterations):
-            return None
-        stretched = batch.gauss_newton(centre, batch.roll(centre, dt * (1 + TIME_STEP)), refit_iterations)
-        scaled = batch.chord(centre, fitted[None] * (1 + SCALE_STEP), refit_iterations)
-        held_out = _held_out(system, params, x, dt, centre, integrator, substeps)
-        bend = bends(batch, centre, fitted, refit_iterations) if learned else {}
-        moved = batch.chord(centre, fitted[None] + np.stack(moves), refit_iterations) if moves else None
+        # a refit that runs off overflows on its way to NaN, which is dropped below: not a warning
+        with np.errstate(over="ignore", invalid="ignore"):
+            batch = _Batch(system, params, x, dt, integrator, substeps)
+            if batch.T < batch.nc + 2 * batch.p:
+                return None
+            theta0 = np.concatenate([[float(values[n]) for n in batch.names], x[: batch.nc].reshape(-1)])[None]
+            centre = batch.gauss_newton(theta0, x[None], CENTRE_ITERATIONS)
+            if not np.all(np.isfinite(centre)):
+                return None
+            fitted = batch.roll(centre)[0]
+            resid = x - fitted
+            block = block_length(resid)
+            rng = np.random.default_rng(seed)
+            targets = np.stack([fitted + resample_blocks(resid, block, rng) for _ in range(iterations)])
+            draws = batch.chord(centre, targets, refit_iterations)
+            draws = draws[np.all(np.isfinite(draws), axis=1)]
+            if len(draws) < max(2, MIN_KEPT * iterations):
+                return None
+            stretched = batch.gauss_newton(centre, batch.roll(centre, dt * (1 + TIME_STEP)), refit_iterations)
+            scaled = batch.chord(centre, fitted[None] * (1 + SCALE_STEP), refit_iterations)
+            held_out = _held_out(system, params, x, dt, centre, integrator, substeps)
+            bend = bends(batch, centre, fitted, refit_iterations) if learned else {}
+            moved = batch.chord(centre, fitted[None] + np.stack(moves), refit_iterations) if moves else None
     except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError, FitodeError):
         return None  # (FitodeError: a refit ran a constant off to no number, on a path of noise)
     names, m = batch.names, batch.m

@@ -14,6 +14,7 @@ import torch
 
 from .observe.base import Lengths, Prepared
 from .plan import FitPlan
+from .threads import torch_threads
 
 
 @dataclass
@@ -43,8 +44,9 @@ def measure(frames: torch.Tensor, plan: FitPlan) -> Measurement:
     ConfigError (one line) where the frames cannot be measured so."""
     system, observation = plan.system, plan.observation
     device = torch.device(plan.config.device)
-    prepared = observation.prepare(frames.to(device), plan.config.encoder,
-                                   fit_frames=plan.n_train).in_order(system.states)
+    with torch_threads(plan.config.threads):
+        prepared = observation.prepare(frames.to(device), plan.config.encoder,
+                                       fit_frames=plan.n_train).in_order(system.states)
     units, columns = None, None
     measured = prepared.states is not None and prepared.inputs.dim() == 4 and tuple(prepared.inputs.shape[2:]) == (1, 1)
     if measured:

@@ -16,9 +16,10 @@ import torch
 from fitode.eqparse import OdeSystem, ParamSpec
 from fitode.errors import TrainingError
 
-from .config import ENCODER_NAMES, TrainConfig, resolve_encoder
+from .config import ENCODER_NAMES, MIN_WINDOW, TrainConfig, resolve_encoder
 from .window import resolve_window
 from .observe import ObservationModel, resolve_observation
+from .threads import torch_threads
 
 CHOICES = ("observation", "encoder", "window")  # the choices a plan records, in the order they are printed
 
@@ -87,6 +88,20 @@ class FitPlan:
         return lines
 
 
+def _check_length(system: OdeSystem, config: TrainConfig, n_frames: int, n_train: int) -> None:
+    """A clip too short for the equation, said in a user's words before any choice is made on it:
+    a window needs the frames the initial state is read from (codegen.differences) and one to
+    predict, and training one window and a frame past it."""
+    from fitode.codegen.differences import init_scheme
+    need = max(init_scheme(system.max_order, config.initial_state).context + 2, MIN_WINDOW + 1)
+    if n_frames < need:
+        raise TrainingError(f"the clip has {n_frames} frame{'s' if n_frames != 1 else ''}; this equation needs at "
+                            f"least {need} (a longer clip, or a smaller --stride)")
+    if n_train < need:
+        raise TrainingError(f"the training part of the clip has {n_train} frames; this equation needs at least "
+                            f"{need} (a larger --train-fraction)")
+
+
 def make_plan(system: OdeSystem, params: Mapping[str, ParamSpec], frames: torch.Tensor, dt: float,
               config: TrainConfig, *, observe: str | ObservationModel | None = None, n_train: int | None = None,
               init: Mapping[str, float] | None = None, observe_source: str = "as asked", track=None, lengths=None) -> FitPlan:
@@ -97,10 +112,12 @@ def make_plan(system: OdeSystem, params: Mapping[str, ParamSpec], frames: torch.
     a place read; None: they measure the frames."""
     n_frames = int(frames.shape[0])
     n_train = n_frames if n_train is None else int(n_train)
+    _check_length(system, config, n_frames, n_train)
     if track is not None and len(track) != n_frames:
         track = None  # frames cut or subsampled after reading: the track is not theirs
-    observation = resolve_observation(observe, system, frames[:n_train], config.light, config.encoder,
-                                      source=observe_source, track=track, n_train=n_train)
+    with torch_threads(config.threads):
+        observation = resolve_observation(observe, system, frames[:n_train], config.light, config.encoder,
+                                          source=observe_source, track=track, n_train=n_train)
     if lengths is not None:  # how a measured length reads in px or metres (observe.base.Lengths)
         observation.use_lengths(lengths)
     config, encoder_reason = resolve_encoder(config, system, observation)

@@ -68,16 +68,20 @@ class RunRecord:
 
 @dataclass
 class FitResult:
-    """The outcome of `fitode.fit`.
+    """The outcome of a fit (fitode.fit returns it as a fitode.Result, which adds the table,
+    intervals at any level, a DataFrame, a figure and the output folder).
 
-    parameters: the estimate of each learnable constant (mean over the selected runs) and its
-        spread (standard deviation over the selected runs; 0 when only one was selected).
+    parameters: the estimate of each learnable constant (an Estimate: the mean over the selected
+        runs, their spread `std` (standard deviation over the selected runs, 0 for one: how alike
+        the restarts ended, no error bar), n_runs, unit, calibrated, latent_value and the 95%
+        `interval`, the uncertainty).
+    runs: every restart (RunRecord: where it started and ended, loss, steps, status, history).
     selected: indices of the runs the estimate comes from: the finite runs whose final loss is
         within `selection_factor` of the lowest final loss.
-    latent: (T, d) the best run's encoder applied to every frame, training range and beyond.
+    best: the selected run with the lowest loss: its latent, rollout and gauge are the ones kept.
+    latent: (T, d) the best run's reading of every frame (encoded or measured), training range and beyond.
     rollout: (T, d) the physics rollout from the first frames with the best run's constants.
     time: (T,) seconds from the first frame; frames at index >= train_frames were not trained on.
-    runs: every restart's record (RunRecord); best: the index of the best selected run.
     train_frames: the frames trained on (the first ones); dt: seconds between frames.
     states: the equation's states in order; equation: its text; fixed: its fixed constants.
     settings: the training options as resolved (TrainConfig.as_dict, plus the steps per frame a
@@ -101,8 +105,11 @@ class FitResult:
         (fitode.interrupted); calibration_skipped: why --calibrate was not applied (fitode.api);
         comparison: every candidate's numbers where several were compared (fitode.compare);
         input: the clip as read (pipeline.run_video).
-    verdicts, checks, warnings, notes, calibration: the assessment's (train.assess) and the
-        calibration's (fitode.calibrate), below.
+    verdicts: name -> {"verdict": trusted | ambiguous | not trustworthy, "reason", "other_reasons"}.
+    checks: the numbers behind the verdicts (interval, consistency, integrator, every finding).
+    warnings: the assessment's findings that are no verdict's headline, and numpy's warnings.
+    notes: what happened to the restarts (left out, failed), no judgement.
+    calibration: the calibration applied (maps, converted constants, calibrated trajectories), or None.
     """
 
     parameters: dict[str, Estimate]

@@ -6,7 +6,6 @@ choice of runs in selection.py.
 """
 from __future__ import annotations
 
-import contextlib
 import math
 from dataclasses import dataclass, replace
 from typing import Callable, Mapping
@@ -36,6 +35,7 @@ from .starts import CANDIDATES, data_starts
 from .direct import full_fit, fit_path, fitted_path, orientation, screen
 from .steps import settle_substeps
 from .stretch import MIN_SEED, find_stretch
+from .threads import torch_threads as _threads  # the fit's threads (config.threads)
 from .trajectory import SEGMENT, fit_trajectory, long_options
 from .findings import Finding
 from .latent_checks import video_checks
@@ -492,18 +492,6 @@ def _align(records: list[RunRecord], latents: np.ndarray, best: int,
         r.aligned = {n: (-v if n in names else v) for n, v in r.final.items()}
 
 
-@contextlib.contextmanager
-def _threads(n: int | None):
-    """torch's intra-op threads for the fit only (small models gain little from threads)."""
-    if n is None:
-        yield
-        return
-    before = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
 
 
 @torch.no_grad()

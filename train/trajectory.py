@@ -3,7 +3,7 @@ trajectory, with standard errors.
 
 A fixed trajectory x (T, k), one column per state (a measured path, a calibrated latent, a frozen
 readout of the frames), is fitted by the physics block in float64 with L-BFGS and a strong-Wolfe
-line search. Two ways to cut it:
+line search, or Levenberg-Marquardt (solver "lm"). Two ways to cut it:
 
 - whole (windows=None): x is one trajectory of the equation; its starting frames and the
   constants are both free. What acts slowly (light damping, drag) shows over the whole clip.
@@ -22,8 +22,15 @@ segments (whole mode only): the one trajectory is rolled out as consecutive piec
 frames, each from starting frames of its own, its first frames rolled out tied to the end of the
 piece before by a stiff residual (multiple shooting): the same trajectory at the minimum, but each rollout is short, so a
 clip of thousands of frames costs what a few dozen do (the rollout is one Python step per frame).
-solver "lm" (Levenberg-Marquardt on the forward-mode Jacobian) takes a few dozen steps where
-L-BFGS takes hundreds; it suits the many starting frames of segments.
+A whole trajectory without segments is one segment. solver "lm" (Levenberg-Marquardt on the
+Jacobian by forward differences) takes a few dozen steps where L-BFGS takes hundreds; it suits the
+many starting frames of segments. It is bounded (ITERATIONS steps, TRIALS_PER_STEP trial rollouts
+a step in all) and says when it stopped at its bound (converged False; steps and rollouts counted).
+
+Where no gradient is asked for (Levenberg-Marquardt, the errors) the rollout is NumPy code
+generated from the same equation (codegen.compile_numpy, PhysicsBlock.rollout_numpy), and every
+column of the Jacobian the block can roll out (each constant, the segments' starting frames) is
+one copy of a single batched rollout; L-BFGS differentiates the torch rollout.
 
 bend: x is first read through a perspective (one-dimensional homography) about its middle m,
 x -> m + (x - m) / (1 + c (x - m)), with c fitted too (kept so that the pole stays outside the
@@ -44,6 +51,8 @@ PERSPECTIVE = "perspective"  # the bend's c, among the values when bend=True
 POLE_MARGIN = 0.9
 JOIN_WEIGHT = 300.0  # a jump between two segments costs as much as JOIN_WEIGHT**2 frames' misfit of its size
 SOLVERS = ("lbfgs", "lm")
+TRIALS = 24  # dampings (each ten times the last) tried within one Levenberg-Marquardt step
+TRIALS_PER_STEP = 3  # trial rollouts per step on average, in all: the bound on a fit's work
 SEGMENT = 60  # frames per shooting segment of a long path (long_options)
 
 
@@ -55,10 +64,12 @@ class TrajectoryFit:
     errors: dict[str, float]  # their standard errors
     misfit: float  # RMS residual in units of each (bent) state's spread
     residuals: np.ndarray  # (T, k) whole; (windows, N - context, k) windows; in x's units
-    converged: bool  # L-BFGS stopped on its tolerances before its iteration limit
+    converged: bool  # the solver stopped on its tolerances within its bounds
     windows: int | None = None  # the window length, None for the whole trajectory
     start: np.ndarray | None = None  # (context, k) the fitted starting frames, whole mode only
     gauge: dict[str, dict[str, float]] | None = None  # state -> scale, offset: the state is scale * x + offset
+    steps: int = 0  # the solver's steps (Levenberg-Marquardt: Jacobians; L-BFGS: iterations)
+    rollouts: int = 0  # Levenberg-Marquardt's trial rollouts (its bound: TRIALS_PER_STEP * iterations)
 
 
 def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Mapping[str, float], *,
@@ -76,13 +87,27 @@ def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Map
     the one trajectory runs through them, and the residuals cover them too (what it predicts
     there: a held-out block of a cross-validation, fitode.train.crossval).
     None where it cannot be fitted (it leaves the equation's domain, too few frames)."""
+    if solver not in SOLVERS:
+        raise ValueError(f"solver must be one of {', '.join(SOLVERS)}")
+    with _one_thread():
+        return _fit(system, params, x, dt, start, integrator, substeps, windows, bend, max_windows, robust,
+                    iterations, gauge, segments, solver, keep)
+
+
+def _one_thread():
+    """torch on one intra-op thread while a trajectory is fitted: its tensors hold a few hundred
+    numbers, and two threads on a busy machine made the fit of a 39-frame path 3.7x slower."""
+    from .threads import torch_threads
+    return torch_threads(1)
+
+
+def _fit(system, params, x, dt, start, integrator, substeps, windows, bend, max_windows, robust, iterations, gauge,
+         segments, solver, keep) -> TrajectoryFit | None:
     import torch
 
     from fitode.codegen import PhysicsBlock
     from fitode.errors import FitodeError
 
-    if solver not in SOLVERS:
-        raise ValueError(f"solver must be one of {', '.join(SOLVERS)}")
     xt = torch.as_tensor(np.asarray(x, dtype=np.float64)).reshape(len(x), -1)
     if not bool(torch.isfinite(xt).all()):
         return None
@@ -92,18 +117,24 @@ def fit_trajectory(system, params: Mapping, x: np.ndarray, dt: float, start: Map
         problem = _Problem(block, xt, dt, windows, bend, max_windows, gauge, segments, keep)
         named = [(k, p) for k, p in block.named_parameters() if p.requires_grad] + problem.extra
         scales = problem.scales(named)
+        trials = 0
         if solver == "lm":
-            converged = _levenberg(problem, named, scales, iterations)
+            converged, steps, trials = _levenberg(problem, named, scales, iterations)
         else:
-            converged = _minimise(lambda values: torch.mean(problem.residual(values) ** 2), named, scales,
-                                  iterations)
+            converged, steps = _minimise(lambda values: torch.mean(problem.residual(values) ** 2), named, scales,
+                                         iterations)
         if robust:
-            r = problem.residual(dict(named)).detach()
+            with torch.no_grad():
+                r = problem.residual(dict(named)).detach()
             spread = 1.4826 * float((r - r.median()).abs().median())
             if spread > 0:
-                converged = _minimise(lambda values: torch.mean(_soft_l1(problem.residual(values), spread)), named,
-                                      scales, iterations)
-        return _summary(block, problem, named, scales, converged, robust)
+                converged, more = _minimise(lambda values: torch.mean(_soft_l1(problem.residual(values), spread)),
+                                            named, scales, iterations)
+                steps += more
+        fit = _summary(block, problem, named, scales, converged, robust)
+        if fit is not None:
+            fit.steps, fit.rollouts = steps, trials
+        return fit
     except (FitodeError, RuntimeError, FloatingPointError, ValueError):
         return None
 
@@ -150,12 +181,10 @@ class _Problem:
             if T < nc + 2:
                 raise ValueError("too few frames for one trajectory")
             self.index = None
-            self.pieces = _pieces(T, nc, segments)
-            if self.pieces is None:
-                self.extra.append(("start", xt[:nc].clone().requires_grad_(True)))
-            else:
-                firsts, self.length, self.seg, self.off = self.pieces
-                self.extra.append(("start", xt[firsts[:, None] + np.arange(nc)[None, :]].clone().requires_grad_(True)))
+            # the whole trajectory is one segment: the same residual, and its Jacobian one batched rollout
+            self.pieces = _pieces(T, nc, T if segments is None else segments)
+            firsts, self.length, self.seg, self.off = self.pieces
+            self.extra.append(("start", xt[firsts[:, None] + np.arange(nc)[None, :]].clone().requires_grad_(True)))
         else:
             n = min(int(windows), T)
             if n < nc + 1:
@@ -207,36 +236,48 @@ class _Problem:
             b = b.index_put((torch.tensor(self.learn_offset),), swapped["gauge_offset"])
         return s, b
 
+    def roll(self, own: dict, head, n_frames: int):
+        """The block's rollout (B, n_frames, k) of the starting frames head (B, context, k) with the
+        block's raw constants own (each 0-d, or (B,): one set per rollout). Through torch where a
+        gradient is asked for (L-BFGS); otherwise the NumPy field, which costs a fraction of torch's
+        per step (the rollout is one Python step per frame)."""
+        import torch
+        if torch.is_grad_enabled() and (head.requires_grad or any(v.requires_grad for v in own.values())):
+            from torch.func import functional_call
+            return functional_call(self.block, own, (head, n_frames, self.dt))
+        from fitode.errors import NonFiniteError
+        values = [v.detach().numpy() for v in self.block.values_of(own).values()]
+        out = self.block.rollout_numpy(head.detach().numpy(), n_frames, self.dt, values)
+        if not np.isfinite(out).all():
+            raise NonFiniteError("the rollout left the equation's domain")
+        return torch.from_numpy(out)
+
     def difference(self, swapped):
         """prediction - target, in the target's units: (T, k) whole, (W, N - context, k) windows."""
-        from torch.func import functional_call
-
         target = self.bent(swapped)
+        if self.index is None:
+            return self.piecewise(swapped)[0][0] - target
         own = {k: v for k, v in swapped.items() if k in self.models}
         s, b = self.gauge(swapped)
-        if self.index is None and self.pieces is not None:
-            return self.piecewise(swapped)[0][0] - target
-        if self.index is None:
-            state = functional_call(self.block, own, (swapped["start"][None] * s + b, target.shape[0], self.dt))[0]
-            return (state - b) / s - target
         nc = self.block.n_context
         xw = target[self.index]
-        state = functional_call(self.block, own, (xw[:, :nc] * s + b, xw.shape[1], self.dt))
+        state = self.roll(own, xw[:, :nc] * s + b, xw.shape[1])
         return (state[:, nc:] - b) / s - xw[:, nc:]
 
-    def piecewise(self, swapped, start=None):
+    def piecewise(self, swapped, start=None, constants: dict | None = None):
         """The segments' rollouts in x's units: the frames (C, T, k) each from its own segment, and
         the jumps (C, S - 1, context, k) between a segment's end and the frames the next one rolls out
         from its starting frames (a frame is read from the last segment that has rolled it out),
-        for C sets of starting frames `start` (C, S, context, k) (default: the fitted ones, C = 1)."""
-        from torch.func import functional_call
-
+        for C sets of starting frames `start` (C, S, context, k) (default: the fitted ones, C = 1)
+        and of the block's raw constants `constants` ({name: (C,)}; default: the fitted ones)."""
         own = {k: v for k, v in swapped.items() if k in self.models}
         s, b = self.gauge(swapped)
         start = swapped["start"][None] if start is None else start
         nc, k = self.block.n_context, start.shape[-1]
+        if constants is not None:  # one set per copy, for each of its segments
+            own = {key: v[:, None].expand(-1, start.shape[1]).reshape(-1) for key, v in constants.items()}
         head = (start * s + b).reshape(-1, nc, k)
-        state = (functional_call(self.block, own, (head, self.length, self.dt)) - b) / s
+        state = (self.roll(own, head, self.length) - b) / s
         state = state.reshape(*start.shape[:2], self.length, k)
         step = self.length - 2 * nc  # the frames between two segments' starts
         # the join compares rolled-out frames of both, past the next one's starting frames: the state
@@ -245,11 +286,11 @@ class _Problem:
         # another trajectory (the paper's motion video: g1 0.067% low on an exact path)
         return state[:, self.seg, self.off], state[:, :-1, step + nc:step + 2 * nc] - state[:, 1:, nc:2 * nc]
 
-    def pieces_residual(self, swapped, start=None):
-        """residual() for C sets of segment starts at once: (C, rows)."""
+    def pieces_residual(self, swapped, start=None, constants: dict | None = None):
+        """residual() for C sets of segment starts (and of the block's constants) at once: (C, rows)."""
         import torch
         root = (1.0 / self.bent(swapped).var(dim=0).clamp_min(1e-24)).sqrt()
-        frames, joins = self.piecewise(swapped, start)
+        frames, joins = self.piecewise(swapped, start, constants)
         data = (frames - self.bent(swapped)) * root
         if self.keep is not None:
             data = data * self.keep
@@ -257,67 +298,86 @@ class _Problem:
 
     def jacobian(self, residual, named: list, values, scale):
         """d residual / d u at the flat values (value = start + scale * u), by forward differences;
-        with segments, the starts of every other segment are moved at once (a segment's frames and
-        joins depend on its own start and its neighbours' only), so the Jacobian of hundreds of
-        starting frames costs 2 * context * k rollouts of the segments, batched into one."""
+        with segments, every column the block can roll out (each constant, and the starts of every
+        other segment moved at once: a segment's frames and joins depend on its own start and its
+        neighbours' only) is one copy of a single batched rollout, so the Jacobian of hundreds of
+        starting frames and the constants costs one rollout of 1 + constants + 2 * context * k
+        copies of the segments."""
         import torch
         sizes = [p.numel() for _, p in named]
         parts = list(torch.split(values, sizes))
         swapped = {k: part.view_as(p) for (k, p), part in zip(named, parts)}
-        r0 = residual(swapped)
+        batched = self.index is None
+        if batched:
+            r0, columns = self._batched_columns(swapped, named, parts, torch.split(scale, sizes))
+        else:
+            r0, columns = residual(swapped), {}
         cols = []
-        offset = 0
         for (key, p), part, sc in zip(named, parts, torch.split(scale, sizes)):
-            if key == "start" and self.pieces is not None:
-                cols.append(self._start_columns(swapped, r0, sc.view_as(p)))
-            else:
-                for i in range(part.numel()):
-                    h = 1e-7 * float(sc[i])
-                    moved = dict(swapped)
-                    bumped = part.clone()
-                    bumped[i] += h
-                    moved[key] = bumped.view_as(p)
-                    cols.append(((residual(moved) - r0) / h * float(sc[i]))[:, None])
-            offset += part.numel()
+            if key in columns:
+                cols.append(columns[key])
+                continue
+            for i in range(part.numel()):
+                h = 1e-7 * float(sc[i])
+                moved = dict(swapped)
+                bumped = part.clone()
+                bumped[i] += h
+                moved[key] = bumped.view_as(p)
+                cols.append(((residual(moved) - r0) / h * float(sc[i]))[:, None])
         return torch.cat(cols, dim=1), r0
 
-    def _start_columns(self, swapped, r0, scale):
+    def _batched_columns(self, swapped, named: list, parts: list, scales) -> tuple:
+        """The residual and the Jacobian's columns of the block's constants and the segments'
+        starting frames ({key: (rows, n)}), from one batched rollout (see jacobian)."""
         import torch
         start = swapped["start"]
         n, nc, k = start.shape
-        T = self.xt.shape[0]
+        consts = {key: part.reshape(()) for (key, p), part in zip(named, parts) if key in self.models and p.numel() == 1}
+        copies: list = [(start, dict(consts))]  # the first copy is the residual itself
+        const_steps = []
+        for (key, p), part, sc in zip(named, parts, scales):
+            if key in consts:
+                h = 1e-7 * float(sc[0])
+                copies.append((start, {**consts, key: consts[key] + h}))
+                const_steps.append((key, h, float(sc[0])))
+            elif key == "start":
+                start_scale = sc.view_as(p)
         seg = self.seg.numpy()
         jj = np.repeat(np.arange(n - 1), nc * k)
-        out = torch.zeros(r0.numel(), n * nc * k, dtype=r0.dtype)
-        copies, owners = [], []
-        for color in (0, 1):
+        owners, bumps = [], []
+        for color in (0, 1) if n > 1 else (0,):
             mask = torch.as_tensor(np.arange(n) % 2 == color, dtype=start.dtype)[:, None]
             own_data = np.repeat(np.where(seg % 2 == color, seg, -1), k)
             own_join = np.where(jj % 2 == color, jj, jj + 1)
             owners.append(np.concatenate([own_data, own_join]))
             for i in range(nc):
                 for c in range(k):
-                    h = 1e-7 * scale[:, i, c]
+                    h = 1e-7 * start_scale[:, i, c]
                     bumped = start.clone()
                     bumped[:, i, c] += h * mask[:, 0]
-                    copies.append((color, i, c, bumped, h))
-        moved = self.pieces_residual(swapped, torch.stack([b for *_, b, _ in copies]))
+                    copies.append((bumped, consts))
+                    bumps.append((color, i, c, h))
+        moved = self.pieces_residual(swapped, torch.stack([b for b, _ in copies]),
+                                     {key: torch.stack([c[key] for _, c in copies]) for key in consts})
+        r0 = moved[0]
+        columns = {key: ((moved[1 + j] - r0) / h * sc)[:, None] for j, (key, h, sc) in enumerate(const_steps)}
+        out = torch.zeros(r0.numel(), n * nc * k, dtype=r0.dtype)
         rows = np.arange(r0.numel())
-        for (color, i, c, _, h), r in zip(copies, moved):
+        for (color, i, c, h), r in zip(bumps, moved[1 + len(const_steps):]):
             owner = owners[color]
             ok = owner >= 0
             cols = owner[ok] * nc * k + i * k + c
-            d = (r - r0)[ok] / h[owner[ok]] * scale[owner[ok], i, c]
+            d = (r - r0)[ok] / h[owner[ok]] * start_scale[owner[ok], i, c]
             out[rows[ok], cols] = d
-        return out
+        columns["start"] = out
+        return r0, columns
 
     def residual(self, swapped):
+        if self.index is None:
+            return self.pieces_residual(swapped)[0]
         root = (1.0 / self.bent(swapped).var(dim=0).clamp_min(1e-24)).sqrt()  # every state counts equally
         data = self.difference(swapped) * root
-        data = (data if self.keep is None else data * self.keep).flatten()
-        if self.index is not None or self.pieces is None:
-            return data
-        return self.pieces_residual(swapped)[0]
+        return (data if self.keep is None else data * self.keep).flatten()
 
     def misfit(self, swapped) -> float:
         """RMS of the frames' residual (the joins between segments left out), in spreads."""
@@ -329,29 +389,30 @@ class _Problem:
         return float(torch.mean(square)) ** 0.5
 
 
-def _pieces(T: int, nc: int, segments: int | None):
+def _pieces(T: int, nc: int, segments: int):
     """Where each segment starts, the frames each rolls out, and for every frame its segment and
-    its place in it; None without segments. One segment is the whole trajectory, its Jacobian
-    batched (trajectory._Problem.jacobian)."""
+    its place in it. One segment is the whole trajectory, its Jacobian batched
+    (trajectory._Problem.jacobian)."""
     import torch
-    if segments is None:
-        return None
     m = max(int(segments), nc + 1)
     n = max(1, -(-(T - nc) // m))  # the last segment starts at least `nc` frames before the end
     firsts = np.arange(n) * m
     t = np.arange(T)
     seg = np.clip((t - nc) // m, 0, n - 1)  # a segment's starting frames are read from the one before
-    return firsts, m + 2 * nc, torch.as_tensor(seg), torch.as_tensor(t - firsts[seg])
+    # one segment rolls out the path's own frames only (a short stretch of a dozen frames rolled out
+    # 70 frames per trial cost six times its work); its rollout's frames are the same either way
+    length = T if n == 1 else m + 2 * nc
+    return firsts, length, torch.as_tensor(seg), torch.as_tensor(t - firsts[seg])
 
 
 def _soft_l1(r, spread: float):
     return 2 * spread ** 2 * ((1 + (r / spread) ** 2).sqrt() - 1)
 
 
-def _minimise(loss, named: list, scales: list, iterations: int) -> bool:
+def _minimise(loss, named: list, scales: list, iterations: int) -> tuple[bool, int]:
     """L-BFGS with a strong-Wolfe line search in the scaled steps u (value = start + scale * u),
-    on the loss relative to its start; the named tensors end at the minimum. True where it
-    stopped on its tolerances before its iteration limit."""
+    on the loss relative to its start; the named tensors end at the minimum. (converged: it
+    stopped on its tolerances before its iteration limit, iterations taken)."""
     import torch
 
     origin = [p.detach().clone() for _, p in named]
@@ -374,13 +435,17 @@ def _minimise(loss, named: list, scales: list, iterations: int) -> bool:
     with torch.no_grad():
         for (_, p), v in zip(named, values().values()):
             p.copy_(v)
-    return opt.state[opt._params[0]].get("n_iter", iterations) < iterations
+    done = int(opt.state[opt._params[0]].get("n_iter", iterations))
+    return done < iterations, done
 
 
-def _levenberg(problem: _Problem, named: list, scales: list, iterations: int) -> bool:
+def _levenberg(problem: _Problem, named: list, scales: list, iterations: int) -> tuple[bool, int, int]:
     """Levenberg-Marquardt in the scaled steps u (value = start + scale * u) on the residual
-    vector, the Jacobian forward-mode; the named tensors end at the minimum. True where the cost
-    stopped falling before the iteration limit."""
+    vector, the Jacobian by forward differences; the named tensors end at the minimum. Bounded:
+    at most `iterations` steps (a Jacobian each), TRIALS dampings within one step and
+    TRIALS_PER_STEP * iterations trial rollouts in all (a wrong basin where the cost creeps down
+    by a little each step ran for many minutes). (converged, steps, trial rollouts): converged
+    where the cost stopped falling within the bounds."""
     import torch
 
     from fitode.errors import FitodeError
@@ -400,17 +465,23 @@ def _levenberg(problem: _Problem, named: list, scales: list, iterations: int) ->
         raise FloatingPointError("the starting point leaves the equation's domain")
     # small damping: the starting frames are nearly collinear, and a damping of the diagonal's
     # 1e-3 held the steps along them back for dozens of iterations on a linear problem
-    damping, converged = 1e-10, False
-    for _ in range(iterations):
+    damping, converged, steps, trials = 1e-10, False, 0, 0
+    budget = TRIALS_PER_STEP * iterations
+    while steps < iterations and trials < budget:
+        steps += 1
         with torch.no_grad():
             jac = problem.jacobian(problem.residual, named, origin + scale * u, scale)[0]
         a, g = jac.T @ jac, jac.T @ res
         diag = a.diagonal().clamp_min(1e-12)
-        improved = False
-        for _ in range(24):
+        improved = settled = False
+        for _ in range(TRIALS):
             step = torch.linalg.solve(a + damping * torch.diag(diag), -g)
             if float(-(g @ step)) <= 1e-8 * cost:  # the model promises nothing more: at the minimum
+                settled = True
                 break
+            if trials >= budget:
+                break
+            trials += 1
             try:
                 with torch.no_grad():
                     trial = r(u + step)
@@ -422,7 +493,7 @@ def _levenberg(problem: _Problem, named: list, scales: list, iterations: int) ->
                 break
             damping *= 10.0
         if not improved:
-            converged = True
+            converged = settled or trials < budget  # no damping lowers the cost: at the minimum
             break
         u, res, drop, cost = u + step, trial, cost - new, new
         damping = max(damping / 10.0, 1e-15)
@@ -432,7 +503,7 @@ def _levenberg(problem: _Problem, named: list, scales: list, iterations: int) ->
     with torch.no_grad():
         for (_, p), part in zip(named, torch.split(origin + scale * u, sizes)):
             p.copy_(part.view_as(p))
-    return converged
+    return converged, steps, trials
 
 
 def _summary(block, problem: _Problem, named: list, scales: list, converged: bool,
@@ -445,7 +516,8 @@ def _summary(block, problem: _Problem, named: list, scales: list, converged: boo
 
     def residual(v):
         return problem.residual({k: part.view_as(p) for (k, p), part in zip(named, torch.split(v, sizes))})
-    r = residual(flat).detach()
+    with torch.no_grad():
+        r = residual(flat).detach()
     with torch.no_grad():  # forward differences: forward-mode AD through the generated field takes a slow path
         jac = problem.jacobian(problem.residual, named, flat, scale)[0] / scale
     if robust:  # the soft-L1 weights, as in iteratively reweighted least squares
@@ -499,7 +571,7 @@ def trajectory_misfit(system, params: Mapping, x: np.ndarray, dt: float, values:
         block = PhysicsBlock(system, params, integrator=integrator, substeps=substeps, dtype=torch.float64)
         block.set_constants({n: float(values[n]) for n in system.learnable})
         problem = _Problem(block, xt, dt, windows, False, max_windows, gauge)
-        with torch.no_grad():
+        with torch.no_grad(), _one_thread():
             value = float(torch.mean(problem.residual(dict(problem.extra) | dict(block.named_parameters())) ** 2))
     except (FitodeError, RuntimeError, FloatingPointError, ValueError):
         return math.inf

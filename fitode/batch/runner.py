@@ -173,6 +173,9 @@ def _claim(out_dir: Path, man: Manifest, dry_run: bool):
     if out_dir.is_dir() and any(out_dir.iterdir()) and not marker.is_file():
         raise FitodeError(f"{out_dir} is not empty and is not a fitode batch folder (no {MARKER}); "
                           "choose another --out")
+    if not out_dir.is_dir():
+        from fitode.output import check_writable
+        check_writable(out_dir)  # /proc/x, a path through a file: one line before any job
     if dry_run:
         return None
     out_dir.mkdir(parents=True, exist_ok=True)

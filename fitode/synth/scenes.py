@@ -24,7 +24,7 @@ The dynamics are the physics, not a fit target's approximation:
   f = 1451 px/m at 1920 px wide, scaled with the width here); r0 = 0.0335, 0.06, 0.10 m.
 - spring: y'' = -w2 y - c y' (exact), a can's height on a spring; it also sways sideways (another
   frequency) and turns, and a ball is carried across the view behind it (distractors = 1 or 2
-  crossings); w2 = 12, 18, 30 1/s^2, c = 0.08 /s.
+  crossings; legs = 2: two dark legs walk back and forth behind it); w2 = 12, 18, 30 1/s^2, c = 0.08 /s.
 - throw: y'' = -g (exact), a small ball (1.4 pixels in radius at 320x240) thrown across the view,
   held still before and lying still after (rest_before, rest_after seconds); meta["physical"] has
   the flight's frames and the horizontal x. Film it with fps=240 and store it at 30 (a phone's
@@ -62,6 +62,7 @@ class _Scene:
     state: np.ndarray | None = None
     state_names: tuple[str, ...] = ()
     overlay: Callable[[R.Canvas, int], None] | None = None  # painted after draw (glass, ...)
+    pixels: np.ndarray | None = None  # (T, 2) the object's true centre (x, y) in pixel units, where the scene knows it
 
 
 def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: float | None = None,
@@ -134,7 +135,7 @@ def scene(name: str, setting: float | None = None, *, seed: int = 0, duration: f
     }
     return SynthVideo(frames=frames, dt=dt, truth=sc.truth, latent=sc.latent, equation=info.equation,
                       latent_names=sc.latent_names, state=sc.state, state_names=sc.state_names,
-                      meta=meta)
+                      meta=meta, pixels=sc.pixels)
 
 
 class _Sensor:
@@ -566,7 +567,8 @@ SPRING_EQUATION = "y'' = -w2*y - c*y'"
 def _spring(w2, rng, duration, dt, h, w, p) -> _Scene:
     """A can hanging on a spring: it bounces (y, up, the damped oscillator), sways sideways (the
     spring swings about its hook, another frequency) and turns (its label goes round); a second
-    object crosses the view behind it (a ball carried by someone walking past)."""
+    object crosses the view behind it (a ball carried by someone walking past); with legs = 2, a
+    person's two dark legs walk back and forth across the view behind it as well."""
     if not 1.0 <= w2 <= 400.0:
         raise FitodeError(f"the spring's w2 must be between 1 and 400 1/s^2, got {w2}")
     c = float(p.get("c", 0.08))
@@ -574,6 +576,7 @@ def _spring(w2, rng, duration, dt, h, w, p) -> _Scene:
     sway = float(p.get("sway", 0.06))                              # metres, sideways
     omega_s = float(p.get("sway_omega", 0.62 * np.sqrt(w2)))       # rad/s, not the bounce's
     crossings = int(p.get("distractors", 1))
+    legs = int(p.get("legs", 0))
     n = _frame_count(duration, np.inf, dt, "the spring")
     t = np.arange(n) * dt
     wd = np.sqrt(max(w2 - c * c / 4, 1e-9))
@@ -603,8 +606,20 @@ def _spring(w2, rng, duration, dt, h, w, p) -> _Scene:
     dr = 0.05 * ppm
     dy = 0.8 * h
 
+    # someone walking back and forth behind the can: two dark legs from the floor to above the can
+    walk_x0, walk_s = rng.uniform(0.1, 0.9) * w, rng.uniform(0.25, 0.4) * w  # pixels, pixels/s
+    leg_w, leg_top = 0.035 * w, 0.3 * h
+
     def draw(cc: R.Canvas, i: int) -> None:
         ti = t[i]
+        if legs:
+            # a triangle wave across the view; each leg swings about the hip, one forward, one back
+            u = (walk_x0 + walk_s * ti) / (1.2 * w)
+            hip = (-0.1 + 1.2 * (1 - abs(2 * (u % 1.0) - 1))) * w
+            for k in range(legs):
+                foot = hip + 0.06 * w * np.sin(2 * np.pi * 1.6 * ti + np.pi * k)
+                cc.paint(R.segment(hip, leg_top, foot, floor_y, leg_w), _rgb(0.07, 0.07, 0.09),
+                         (min(hip, foot) - leg_w - 2, leg_top - leg_w - 2, max(hip, foot) + leg_w + 2, floor_y + leg_w + 2))
         for start, sign in trips[:crossings]:
             u = (ti - start) / cross_s
             if 0 <= u <= 1:
@@ -642,7 +657,8 @@ def _spring(w2, rng, duration, dt, h, w, p) -> _Scene:
                   physical={"w2": float(w2), "c": c, "amplitude": amp, "sway": sway, "sway_omega": omega_s,
                             "distractors": crossings, "pixels_per_metre": float(ppm),
                             "period_s": float(2 * np.pi / wd)},
-                  state=np.stack([y, yv], axis=1), state_names=("y", "y'"))
+                  state=np.stack([y, yv], axis=1), state_names=("y", "y'"),
+                  pixels=np.stack([hx + xs * ppm, hy + rest + can_h - y * ppm], axis=1) - 0.5)
 
 
 # --- throw ---------------------------------------------------------------------------------
@@ -753,7 +769,7 @@ SCENES: dict[str, SceneInfo] = {i.name: i for i in (
               ("h0", "floor"), "d'' = g", "free_fall_scale", _free_fall),
     SceneInfo("spring", "w2", (12.0, 18.0, 30.0), "1/s^2",
               "a can bouncing on a spring while it sways and turns, a ball carried across behind it", 12.0,
-              ("c", "amplitude", "sway", "sway_omega", "distractors"), SPRING_EQUATION, "spring", _spring),
+              ("c", "amplitude", "sway", "sway_omega", "distractors", "legs"), SPRING_EQUATION, "spring", _spring),
     SceneInfo("throw", "g", (1.62, 9.80665, 24.79), "m/s^2",  # the Moon, the Earth, Jupiter
               "a small ball thrown across the view (film it at 240 fps)", None,
               ("flight", "angle", "range", "radius", "rest_before", "rest_after"), THROW_EQUATION, "throw", _throw),

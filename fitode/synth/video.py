@@ -22,6 +22,8 @@ class SynthVideo:
     state: (T, n) the full first-order state (values and derivatives, named by
         state_names) where the generator knows it, else None.
     meta: generator settings (kind, seed, how the latent is drawn, ...), JSON-serialisable.
+    pixels: (T, 2) the moving object's true centre (x right, y down) in pixels, pixel (0, 0)'s
+        centre at (0, 0), where the scene knows it (the spring's can), else None.
     """
 
     frames: np.ndarray
@@ -33,6 +35,7 @@ class SynthVideo:
     state: np.ndarray | None = None
     state_names: tuple[str, ...] = ()
     meta: dict = field(default_factory=dict)
+    pixels: np.ndarray | None = None
 
     @property
     def fps(self) -> float:

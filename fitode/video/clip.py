@@ -45,6 +45,9 @@ class Clip:
     # where the moving object is in every kept frame, measured before the frames were shrunk
     # (fitode.video.track; a fitode.train.observe.track.Track), or None
     track: Any = None
+    # a few source frames at full resolution, RGB uint8, by source frame index, kept as the read
+    # decoded them for the pictures (fitode.video.stills.StillKeeper), or None
+    stills: dict | None = field(default=None, repr=False)
 
     @property
     def frame_indices(self) -> np.ndarray:

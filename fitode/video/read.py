@@ -14,6 +14,7 @@ from fitode.video.preprocess import Preprocess, check_roi_inside, default_size
 from fitode.video.sources import (ArraySource, Source, container_fps_problem, open_source,
                                   source_sha256)
 from fitode.video.timing import FrameTimes, frame_times, resample
+from fitode.video.stills import StillKeeper
 from fitode.video.track import TrackRecorder
 
 
@@ -120,6 +121,7 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
     prep: Preprocess | None = None
     the_mask: Mask | None = None
     tracker: TrackRecorder | None = None
+    keeper: StillKeeper | None = None
 
     hint = src.count_hint
     todo = hint if stop is None else (stop if hint is None else min(stop, hint))
@@ -143,6 +145,7 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
                     prep = Preprocess(crop, out_hw, color, src.order)
                     tracker = TrackRecorder(prep.box, todo if todo is None else (todo - first) // (explicit or 1) + 1,
                                             src.order)
+                    keeper = StillKeeper(src.order, todo if todo is None else (todo - first) // (explicit or 1) + 1)
                     if mask_path is not None:
                         the_mask = Mask(mask_path, hw, prep.box)
                         the_mask.grab()  # catch up with frame 0
@@ -155,6 +158,7 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
                     small = prep(frame, src.unit(frame), cut)
                     assert tracker is not None
                     tracker.add(frame, src.unit(frame), cut)
+                    keeper.add(i, frame, src.unit(frame))
                     if buf is None or kept == buf.shape[0]:
                         buf = _grow(buf, kept, small.shape, todo, first, explicit)
                     buf[kept] = small
@@ -232,7 +236,8 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
                 fps_container=src.container_fps, roi=roi, color=color,
                 mask=None if mask_path is None else str(mask_path), notes=notes,
                 frame_times=kept_times, timing=timing.lines, capture_fps=src.capture_fps,
-                source_index=source[every] if timing.lines else None, track=track)
+                source_index=source[every] if timing.lines else None, track=track,
+                stills=None if keeper is None else keeper.frames)
 
 
 def _frame_times(frames: np.ndarray, stamps: list, fps: float, fps_source: str,

@@ -1,0 +1,483 @@
+"""Follow the moving object by its appearance, not by the change it makes.
+
+The change detector (fitode.video.track) says where something moves and how large it is; its
+centroid is the object's only where nothing else changes and the object never overlaps its own
+place in the static scene. Here the detector only seeds: the object is cut out once, in a frame
+where it stands clear of its median place and of everything else (its mask: the change there,
+opened, holes filled), and that template is then found in every frame, forwards and backwards,
+in a window around the place its last two positions predict:
+
+- cv2.matchTemplate (normalised correlation, the object's mask as weights) gives the whole-pixel
+  peak;
+- a few Gauss-Newton steps of the template's translation, with a gain and an offset for the
+  light, weighted by the mask and robustly (Cauchy) against what crosses behind, give the
+  sub-pixel place and, from the residuals and the steps' normal matrix, its standard error;
+- a frame whose best match correlates under HIDDEN is marked hidden (NaN), never filled with
+  whatever stands there; the search widens while the object is lost and covers the frame after
+  LOST frames;
+- the template follows the object slowly (UPDATE of each well-matched frame, aligned to the
+  sub-pixel place first) as it turns and its lighting changes.
+
+The place read is the template's reference point: the centre of the object's mask in the seed
+frame (each pixel weighted by how much of it the object covers).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+HIDDEN = 0.5      # a frame whose best match correlates less than this is hidden
+UPDATE = 0.1      # the share of each placed frame blended into the template's object pixels
+GOOD = 0.85      # ... well-matched: correlation at least this
+LOST = 8          # frames lost after which the whole frame is searched
+STEPS = 8         # Gauss-Newton steps of the sub-pixel refinement
+SEED_FRAMES = 40  # frames the seed is chosen among
+PEAKS = 1         # the correlation's peaks refined where the best is not a good match
+MARGIN = 2        # pixels of background kept around the object's mask in the template
+
+
+@dataclass
+class Followed:
+    """xy: (T, 2) the object's place (x right, y down) in the frames' pixels, NaN where hidden;
+    sigma: (T,) its standard error in pixels (NaN where hidden); score: (T,) the correlation of
+    the best match; seed: the frame the template was cut from; area: the object's area in
+    pixels; note: one line on how."""
+
+    xy: np.ndarray
+    sigma: np.ndarray
+    score: np.ndarray
+    seed: int
+    area: float
+    note: str
+    rigid: np.ndarray | None = None  # (T,) the score against the seed frame's template (how much the object keeps its look)
+
+    @property
+    def hidden(self) -> np.ndarray:
+        return np.isnan(self.xy[:, 0])
+
+
+def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray | None = None,
+                  noise: float | None = None) -> Followed | None:
+    """The object the change detector found (seed_xy: (T, 2) its path, NaN where it saw nothing)
+    followed by its appearance through gray frames (T, H, W) uint8; None where no frame shows it
+    clear enough to cut a template."""
+    t_all = len(stack)
+    if background is None:
+        sample = np.unique(np.linspace(0, t_all - 1, min(t_all, 48)).round().astype(int))
+        background = np.median(stack[sample], axis=0).round().astype(np.uint8)
+    if noise is None:
+        noise = float(1.4826 * np.median(np.abs(stack[::max(1, t_all // 8), ::2, ::2].astype(np.int16)
+                                                - background[::2, ::2]))) + 0.5
+    cut = _seed(stack, seed_xy, background, noise)
+    if cut is None:
+        return None
+    t0, template, weight, ref, area, start = cut
+    xy = np.full((t_all, 2), np.nan)
+    sigma = np.full(t_all, np.nan)
+    score = np.full(t_all, np.nan)
+    rigid = np.full(t_all, np.nan)  # the score against the seed's template, not the one that follows the object
+    size = math.sqrt(area)
+    inner = weight >= 1.0
+    for way in (1, -1):
+        tmpl = template.copy()
+        last: list[np.ndarray] = []
+        lost, angle = 0, 0.0
+        ts = range(t0, t_all) if way == 1 else range(t0 - 1, -1, -1)
+        if way == -1:
+            last = [xy[t0]] if np.isfinite(xy[t0, 0]) else []
+            if t0 + 1 < t_all and np.isfinite(xy[t0 + 1, 0]) and last:
+                last = [xy[t0 + 1], xy[t0]]
+        for t in ts:
+            frame = stack[t].astype(np.float32)
+            if t == t0:
+                guess, reach = start, 2.0
+            elif not last:
+                guess, reach = None, None
+            else:
+                velocity = last[-1] - last[-2] if len(last) > 1 else np.zeros(2)
+                guess = last[-1] + velocity * (lost + 1)
+                reach = max(3.0 * float(np.linalg.norm(velocity)), 0.5 * size, 6.0) * (1 + lost)
+                if lost >= LOST:
+                    guess = None
+            found = _find(frame, tmpl, weight, ref, guess, reach, angle)
+            if found is not None:
+                score[t] = found[2]
+            if found is None or found[2] < HIDDEN:
+                lost += 1
+                continue
+            place, se, corr, patch, turned = found
+            # a match away from where the object should be is taken only where it matches well
+            # (the object taken up again after it was hidden); a poor one is something else
+            if corr < GOOD and (guess is None or float(np.linalg.norm(place - guess)) > 0.25 * size + 2.0):
+                lost += 1
+                continue
+            xy[t], sigma[t], score[t] = place, se, corr
+            rigid[t] = _score(patch, template, weight)
+            last = (last + [place])[-2:]
+            lost, angle = 0, turned
+            # the object's own pixels follow its look (a label that goes round, the light); the ring
+            # around it keeps the seed's: what passes behind is not learnt
+            tmpl = np.where(inner, (1 - UPDATE) * tmpl + UPDATE * patch, tmpl)
+    if np.isfinite(sigma).sum() > 1:  # the seed frame matches itself exactly: its error is like its neighbours'
+        sigma[t0] = float(np.nanmedian(np.delete(sigma, t0)))
+    shift = _recentre(stack, xy, t0, cut[2], template.shape, ref, noise)
+    xy += shift
+    seen = np.isfinite(xy[:, 0])
+    note = (f"the object followed by its appearance (a template of {area:.0f} pixels cut from frame {t0}, "
+            f"hidden in {int((~seen).sum())} of {t_all} frames)")
+    return Followed(xy, sigma, score, t0, float(area), note, rigid)
+
+
+def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
+    """Of the change detector's paths (n, T, 2; the strongest first), the object followed best:
+    among those that move and whose template is found in at least half the frames (else among
+    all), the one that keeps its look best (the median score against the seed frame's template).
+    The strongest change is not always the object: legs walking behind a can on a spring change
+    more; they also change their shape as they go."""
+    sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), 48)).round().astype(int))
+    background = np.median(stack[sample], axis=0).round().astype(np.uint8)
+    noise = float(1.4826 * np.median(np.abs(stack[sample[::6], ::2, ::2].astype(np.int16)
+                                            - background[::2, ::2]))) + 0.5
+    best, rank = None, None
+    for path in paths:
+        if np.isfinite(path[:, 0]).sum() < 3:
+            continue
+        found = follow_object(stack, path, background, noise)
+        if found is None:
+            continue
+        seen = np.isfinite(found.xy[:, 0])
+        if seen.sum() < 3 or float(np.ptp(found.xy[seen], axis=0).max()) < 2.0:
+            continue
+        key = (bool(seen.mean() >= 0.5), float(np.nanmedian(found.rigid[seen])))
+        if rank is None or key > rank:
+            best, rank = found, key
+    return best
+
+
+def _seed(stack, seed_xy, background, noise):
+    """The frame to cut the template from and the cut: (frame, template (h, w) float32, weight
+    (h, w), ref (the reference point in the template's pixels), area). Among SEED_FRAMES frames
+    where the detector saw something, those whose object region has about the median area (not
+    merged with a hand or a leg), the one farthest from the path's median place (its place in the
+    static scene is clean there)."""
+    seen = np.flatnonzero(np.isfinite(seed_xy[:, 0]))
+    if len(seen) < 3:
+        return None
+    pick = seen[np.unique(np.linspace(0, len(seen) - 1, min(len(seen), SEED_FRAMES)).round().astype(int))]
+    cuts = {}
+    for t in pick:
+        cut = _cut(stack[t], background, noise, seed_xy[t])
+        if cut is not None:
+            cuts[int(t)] = cut
+    if not cuts:
+        return None
+    areas = np.array([c[4] for c in cuts.values()])
+    typical = float(np.median(areas))
+    middle = np.nanmedian(seed_xy, axis=0)
+    best, far = None, -1.0
+    for t, c in cuts.items():
+        if not 0.7 * typical <= c[4] <= 1.4 * typical:
+            continue
+        d = float(np.linalg.norm(c[5] - middle))
+        if d > far:
+            best, far = t, d
+    if best is None:
+        return None
+    template, weight, ref, _, area, centre = cuts[best]
+    return best, template, weight, ref, area, centre
+
+
+def _cut(frame, background, noise, near, change=None):
+    """The object around `near` in one frame: (template, weight, ref, box, area, centre) or None
+    (change: the frame's change from the static scene, where the caller knows it better)."""
+    if change is None:
+        change = cv2.absdiff(frame, background).astype(np.float32)
+    h, w = change.shape
+    low = 4.0 * noise
+    hot = (change > low).astype(np.uint8)
+    hot = cv2.morphologyEx(hot, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))  # a string, a spring: not the object
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(cv2.dilate(hot, None), connectivity=8)
+    if n < 2:
+        return None
+    x, y = int(round(float(near[0]))), int(round(float(near[1])))
+    if not (0 <= x < w and 0 <= y < h):
+        return None
+    k = labels[y, x]
+    if k == 0:  # the centroid of a ring or a crescent may lie outside it: the nearest region
+        ys, xs = np.nonzero(labels)
+        if not len(xs):
+            return None
+        j = int(np.argmin((xs - x) ** 2 + (ys - y) ** 2))
+        k = labels[ys[j], xs[j]]
+    region = (labels == k).astype(np.uint8) & hot
+    # thin parts hanging on the object (a pendulum's string, a spring's coils) are not the object:
+    # the region opened by the widest square under a third of its narrower side
+    bw, bh = int(stats[k, 2]), int(stats[k, 3])
+    side = 2 * (min(bw, bh) // 6) + 1
+    if side >= 5:
+        opened = cv2.morphologyEx(region, cv2.MORPH_OPEN, np.ones((side, side), np.uint8))
+        n2, lab2, st2, _ = cv2.connectedComponentsWithStats(opened, connectivity=8)
+        if n2 > 1:
+            keep = 1 + int(np.argmax(st2[1:, cv2.CC_STAT_AREA]))
+            region = (lab2 == keep).astype(np.uint8)
+    ys_r, xs_r = np.nonzero(region)
+    if not len(xs_r):
+        return None
+    bx, by = int(xs_r.min()), int(ys_r.min())
+    bw, bh = int(xs_r.max()) - bx + 1, int(ys_r.max()) - by + 1
+    # holes filled (a stripe the colour of the wall is still the object)
+    outside = np.pad(region, 1)
+    cv2.floodFill(outside, None, (0, 0), 1)  # what stays 0 is enclosed by the region
+    filled = region | (outside[1:-1, 1:-1] == 0).astype(np.uint8)
+    # each pixel weighted by how much of it the object covers: its change over the core's typical change
+    # (an edge pixel by its share: a threshold would move a small object's centre by a good part of
+    # a pixel; a hole, a part the colour of the wall, in full)
+    # full cover: what the object's inside differs by at its least (a low quantile: a shaded ball
+    # differs less on its lit side, and is whole there too)
+    inside_px = cv2.erode(region, np.ones((3, 3), np.uint8))
+    core = change[inside_px > 0] if inside_px.sum() >= 4 else change[region > 0]
+    if core.size < 2:
+        return None
+    full = max(float(np.quantile(core, 0.1)), low)
+    cover = np.clip(change / full, 0.0, 1.0)
+    cover = np.where(filled > region, 1.0, np.where(cv2.dilate(filled, None) > 0, cover, 0.0))
+    area = float(cover.sum())
+    x0, y0 = max(bx - MARGIN, 0), max(by - MARGIN, 0)
+    x1, y1 = min(bx + bw + MARGIN, w), min(by + bh + MARGIN, h)
+    c = cover[y0:y1, x0:x1]
+    ys, xs = np.mgrid[y0:y1, x0:x1]
+    centre = np.array([float((c * xs).sum() / c.sum()), float((c * ys).sum() / c.sum())])
+    # the template's weight: the object and a ring of MARGIN pixels of what surrounds it (its edge)
+    # (the ring weighs half: what passes behind the object changes it); the correlation that says
+    # whether the object is in view is taken over the object's own pixels (weight 1)
+    inner = (c >= 0.5).astype(np.uint8)
+    ring = cv2.dilate(inner, np.ones((2 * MARGIN + 1, 2 * MARGIN + 1), np.uint8))
+    weight = np.where(inner > 0, 1.0, np.where(ring > 0, 0.5, 0.0)).astype(np.float32)
+    template = frame[y0:y1, x0:x1].astype(np.float32)
+    return template, weight, centre - np.array([x0, y0]), (x0, y0, x1, y1), area, centre
+
+
+def _recentre(stack, xy, t0, weight, shape, ref, noise, rounds: int = 2) -> np.ndarray:
+    """The shift (2,) from the template's reference point to the object's centre. The seed's cut
+    is the change from the clip's median frame, and where the object covers its own median place
+    (a large object, a slow swing) that median holds part of it: the cut is a crescent. Once the
+    object's motion is known, each pixel's static scene is rebuilt from the frames in which the
+    template's box, moved with the object, lies away from it, and the object cut again from the
+    seed frame against it; a pixel the object never leaves counts as the object's."""
+    seen = np.flatnonzero(np.isfinite(xy[:, 0]))
+    if len(seen) < 8 or not np.isfinite(xy[t0, 0]):
+        return np.zeros(2)
+    h, w = stack.shape[1:]
+    sample = seen[np.unique(np.linspace(0, len(seen) - 1, min(len(seen), 48)).round().astype(int))]
+    th, tw = shape
+    centre = xy[t0].copy()
+    corner = centre - ref  # the template's top-left corner in the seed frame
+    box = np.array([corner[0], corner[1], corner[0] + tw, corner[1] + th])
+    for _ in range(rounds):
+        grow = 0.5 * max(box[2] - box[0], box[3] - box[1]) + 4
+        x0, y0 = int(max(box[0] - grow, 0)), int(max(box[1] - grow, 0))
+        x1, y1 = int(min(box[2] + grow, w)), int(min(box[3] + grow, h))
+        if x1 - x0 < 3 or y1 - y0 < 3:
+            return np.zeros(2)
+        ys, xs = np.mgrid[y0:y1, x0:x1]
+        values = stack[sample, y0:y1, x0:x1].astype(np.float32)
+        for k, t in enumerate(sample):
+            dx, dy = xy[t] - xy[t0]
+            inside = (xs >= box[0] + dx - 1) & (xs <= box[2] + dx + 1) & (ys >= box[1] + dy - 1) & (ys <= box[3] + dy + 1)
+            values[k][inside] = np.nan
+        known = np.isfinite(values).sum(axis=0) >= 3
+        with np.errstate(all="ignore"):
+            clean = np.nanmedian(np.where(known[None], values, 0.0), axis=0)
+        frame = stack[t0].astype(np.float32)
+        change = np.zeros((h, w), np.float32)
+        change[y0:y1, x0:x1] = np.where(known, np.abs(frame[y0:y1, x0:x1] - clean), 255.0)
+        cut = _cut(stack[t0], None, noise, centre, change)
+        if cut is None:
+            return np.zeros(2)
+        _, _, _, (bx0, by0, bx1, by1), _, found = cut
+        box = np.array([bx0, by0, bx1, by1], dtype=np.float64)
+        centre = found
+    return centre - xy[t0]
+
+
+def _find(frame, template, weight, ref, guess, reach, angle=0.0):
+    """The template's best place in the frame: (place (2,), standard error, correlation, the
+    frame's patch aligned there, angle) or None (angle: the template's turn in the frame before)."""
+    th, tw = template.shape
+    h, w = frame.shape
+    if guess is None:
+        x0, y0, x1, y1 = 0, 0, w, h
+    else:
+        gx, gy = guess - ref  # the template's top-left corner
+        x0, y0 = int(math.floor(gx - reach)), int(math.floor(gy - reach))
+        x1, y1 = int(math.ceil(gx + reach)) + tw + 1, int(math.ceil(gy + reach)) + th + 1
+        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+    if x1 - x0 < tw or y1 - y0 < th:
+        return None
+    window = frame[y0:y1, x0:x1]
+    tm = _turned(template, ref, angle) if abs(angle) > 0.02 else template
+    wm = _turned(weight, ref, angle) if abs(angle) > 0.02 else weight
+    corr = cv2.matchTemplate(window, tm, cv2.TM_CCORR_NORMED if _flat(tm) else cv2.TM_CCOEFF_NORMED, mask=wm)
+    corr = np.nan_to_num(corr, nan=-1.0, posinf=-1.0, neginf=-1.0)
+    # the correlation's best peak is refined and scored; where that is poor, the next best peaks
+    # too (a dark leg correlates with a can's edges better than the can half hidden behind it)
+    best = None
+    spread = max(3, min(th, tw) // 2)
+    for _ in range(PEAKS):
+        j = int(np.argmax(corr))
+        py, px = divmod(j, corr.shape[1])
+        if corr[py, px] <= -1.0:
+            break
+        found = _refine(frame, template, weight, ref, np.array([x0 + px, y0 + py], dtype=np.float64) + ref, angle)
+        if found is not None and (best is None or found[2] > best[2]):
+            best = found
+        if best is not None and best[2] >= GOOD:
+            break
+        corr[max(py - spread, 0):py + spread + 1, max(px - spread, 0):px + spread + 1] = -1.0
+    return best
+
+
+def _turned(image, ref, angle):
+    """The template turned by angle (radians) about its reference point."""
+    m = cv2.getRotationMatrix2D((float(ref[0]), float(ref[1])), -math.degrees(angle), 1.0)
+    return cv2.warpAffine(image, m, (image.shape[1], image.shape[0]), flags=cv2.INTER_LINEAR,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
+def _flat(template: np.ndarray) -> bool:
+    return float(template.std()) < 1e-3
+
+
+def _sample(frame, place, angle, ref, shape):
+    """The frame read on the template's grid placed with its reference point at place and turned by angle."""
+    th, tw = shape
+    c, s = math.cos(angle), math.sin(angle)
+    # template pixel (u, v) -> frame (place + R (u - ref))
+    m = np.array([[c, -s, place[0] - c * ref[0] + s * ref[1]],
+                  [s, c, place[1] - s * ref[0] - c * ref[1]]], dtype=np.float64)
+    return cv2.warpAffine(frame, m, (tw, th), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                          borderMode=cv2.BORDER_REPLICATE)
+
+
+def _refine(frame, template, weight, ref, place, angle=0.0):
+    """Gauss-Newton on the template's place and turn (with a gain and an offset for the light),
+    robustly weighted; (place, standard error, weighted correlation, aligned patch, angle) or None.
+    The steps are taken in the template's own frame (forward composition): a shift d and a turn
+    da move the frame's point of template pixel u to place + R(angle) (R(da) (u - ref) + d)."""
+    th, tw = template.shape
+    t_vec = template.ravel().astype(np.float64)
+    wgt = weight.ravel().astype(np.float64)
+    vs, us = np.mgrid[0:th, 0:tw].astype(np.float64)
+    u, v = (us - ref[0]).ravel(), (vs - ref[1]).ravel()
+    robust = np.ones_like(wgt)
+    place = np.asarray(place, dtype=np.float64).copy()
+    a = None
+    s2 = 0.0
+    for _ in range(STEPS):
+        patch = _sample(frame, place, angle, ref, template.shape)
+        gy, gx = np.gradient(patch.astype(np.float64))
+        gx, gy = gx.ravel(), gy.ravel()
+        p = patch.ravel().astype(np.float64)
+        jac = np.column_stack([gx, gy, gy * u - gx * v, -t_vec, -np.ones_like(t_vec)])
+        ww = wgt * robust
+        a = jac.T @ (jac * ww[:, None])
+        try:
+            d = np.linalg.solve(a, -(jac.T @ (ww * p)))
+        except np.linalg.LinAlgError:
+            return None
+        resid = p + jac @ d  # the residual after the step, to first order
+        s2 = float((ww * resid ** 2).sum() / max(ww.sum() - 5, 1.0))
+        scale = math.sqrt(max(s2, 1e-6))
+        robust = 1.0 / (1.0 + (resid / (3.0 * scale)) ** 2)
+        step = np.clip(d[:2], -1.0, 1.0)  # the linearisation holds within about a pixel
+        turn = float(np.clip(d[2], -0.05, 0.05))
+        c, s = math.cos(angle), math.sin(angle)
+        place = place + np.array([c * step[0] - s * step[1], s * step[0] + c * step[1]])
+        angle += turn
+        if float(np.abs(step).max()) < 1e-3 and abs(turn) < 1e-4:
+            break
+    try:
+        cov = np.linalg.inv(a) * s2
+        se = math.sqrt(max(float(cov[0, 0] + cov[1, 1]), 0.0))
+    except np.linalg.LinAlgError:
+        se = math.inf
+    patch = _sample(frame, place, angle, ref, template.shape).astype(np.float32)
+    return place, se, _score(patch, template, weight), patch, angle
+
+
+def _score(patch, template, weight) -> float:
+    """How well the patch shows the template's object: 1 less the median misfit (after a gain and
+    an offset fitted on the object) over the object's contrast with its surroundings, of the
+    object's inner pixels and of the ring around it, not of its edge (an edge pixel mixes in
+    whatever passes behind). Quantiles, not means: part of the object may be covered, or its label
+    turned, or legs may pass behind one side of it, and it is still there."""
+    inside = weight >= 1.0
+    core = cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    if core.sum() < 4:
+        core = inside
+    ring = (weight > 0) & ~inside
+    t_in, p_in = template[inside].astype(np.float64), patch[inside].astype(np.float64)
+    design = np.column_stack([t_in, np.ones_like(t_in)])
+    (gain, offset), *_ = np.linalg.lstsq(design, p_in, rcond=None)
+    # the light changes the object's look a little; a flat patch (gain 0) is not the object
+    gain = float(np.clip(gain, 0.75, 1.33))
+    offset = float(np.median(p_in - gain * t_in))
+    # the object's inner pixels and the outer ring around it: legs behind the can change a part
+    # of the ring, a dark patch that is not the can changes all of it
+    outer = ring & (cv2.dilate(inside.astype(np.uint8), np.ones((3, 3), np.uint8)) == 0)
+    contrast = abs(float(np.median(template[inside])) - float(np.median(template[ring]))) if ring.any() else 0.0
+    contrast = max(contrast, float(template[weight > 0].std()), 1.0)
+    # each part on its own: a flat patch matches a plain object's inside, and only its ring says
+    # that it is not the object
+    worst = 0.0
+    for part in (core, outer):
+        if part.any():
+            worst = max(worst, float(np.median(np.abs(patch[part] - (gain * template[part] + offset)))))
+    return float(1.0 - worst / contrast)
+
+
+AGREE = 0.9  # the change detector's path is kept where the object tracker agrees with it in this share of frames
+SEEN = 0.5  # ... and is not taken where it places the object in fewer than this share of the frames
+AGREE_PX = 1.0  # ... within this many pixels (or 3 of its standard errors) of their median offset
+
+
+def choose(stack: np.ndarray, paths: np.ndarray, found=None) -> tuple[np.ndarray, str]:
+    """Which track a reader would take, and how it was made (bench/tracking.py's "choice" row; the
+    reader itself, fitode.video.track, still takes the change detector's everywhere: on the shared
+    real clips this rule took the object tracker for the bob, the drop and the bouncing ball, and
+    the drop's g went from 10.16 to 14.45). The change detector's strongest path where it
+    sees one moving object (fitode.video.track.objects: in view in at least half the frames), or
+    where the object tracker (fitode.video.follow, seeded by the detector's paths) agrees with it, up to
+    a constant offset, in AGREE of the frames both place (the detector's centroid is at the limit
+    on a clean scene: the real pendulums), or where the object tracker places the object in fewer
+    than SEEN of the frames (a tiny object, read between pixels); else the object tracker's,
+    hidden frames NaN (something else changes more than the object: legs walking behind it).
+    found: the object tracker's result (fitode.video.follow.follow_best) where the caller has it."""
+    from fitode.video.track import objects
+
+    change = "the change from the static scene"
+    if len(objects(paths)) < 2:
+        return paths[0], change  # one moving object: nothing else to take for it, and the detector is at the limit
+    found = follow_best(stack, paths) if found is None else found
+    if found is None:
+        return paths[0], f"{change} (the object tracker found nothing to follow)"
+    seen = float(np.isfinite(found.xy[:, 0]).mean())
+    if seen < SEEN:
+        return paths[0], f"{change} (the object tracker placed the object in only {100 * seen:.0f}% of the frames)"
+    both = np.isfinite(paths[0][:, 0]) & np.isfinite(found.xy[:, 0])
+    if both.sum() >= 3:
+        d = paths[0][both] - found.xy[both]
+        miss = np.linalg.norm(d - np.median(d, axis=0), axis=1)
+        agree = miss <= np.maximum(AGREE_PX, 3 * np.nan_to_num(found.sigma[both], nan=0.0))
+        share = float(agree.sum()) / max(int(np.isfinite(paths[0][:, 0]).sum()), 1)
+    else:
+        share = 0.0
+    if share >= AGREE:
+        return paths[0], (f"{change} (the object tracker agrees within {AGREE_PX:g} pixel in {100 * share:.0f}% "
+                          "of the frames)")
+    return found.xy, (f"{found.note}, seeded by the change from the static scene (which is elsewhere in "
+                      f"{100 * (1 - share):.0f}% of the frames)")
+

@@ -1,0 +1,69 @@
+"""The object tracker (fitode.video.follow): where the object is, and where it is hidden."""
+import numpy as np
+
+from fitode.synth import render as R
+from fitode.video.follow import choose, follow_best
+from fitode.video.track import MAX_OBJECTS, measure_paths
+
+
+def _clip(n=60, h=120, w=160, cover=None, seed=0, walker=False):
+    """A striped ball swinging across a textured wall (gray uint8 frames) and its true centre per
+    frame (pixel (0, 0)'s centre at (0, 0)); cover: frames in which a dark bar stands over it;
+    walker: two dark legs walking back and forth behind it (more change than the ball)."""
+    rng = np.random.default_rng(seed)
+    wall = (0.6 + 0.05 * R.value_noise(rng, h, w, (4, 12))).astype(np.float32)
+    t = np.arange(n) / 30.0
+    cx = w / 2 + 40 * np.cos(2.5 * t)
+    cy = h / 2 + 10 * np.sin(2.5 * t) ** 2
+    frames = np.empty((n, h, w), np.uint8)
+    for i in range(n):
+        cv = R.Canvas(wall.copy(), 4)
+        if walker:  # two legs, each swinging about the hip as they walk: their shape changes
+            hip = w * (0.1 + 0.8 * abs(((i / 40.0) % 2) - 1))
+            for k in (0, 1):
+                foot = hip + 12 * np.sin(2 * np.pi * i / 15 + np.pi * k)
+                cv.paint(R.segment(hip, 0.3 * h, foot, h, 6.0), 0.08, (min(hip, foot) - 8, 0.3 * h - 8, max(hip, foot) + 8, h))
+        x, y = cx[i], cy[i]
+        cv.paint(R.circle(x, y, 9.0), lambda xx, yy: 0.25 + 0.2 * (np.sin((xx - x) * 0.9) > 0), (x - 10, y - 10, x + 10, y + 10))
+        if cover is not None and cover[0] <= i < cover[1]:
+            cv.paint(R.box(x, h / 2, 14, h / 2), 0.05, (x - 15, 0, x + 15, h))
+        noisy = cv.image + rng.normal(0, 0.01, cv.image.shape)
+        frames[i] = np.clip(noisy * 255 + 0.5, 0, 255).astype(np.uint8)
+    return frames, np.stack([cx, cy], axis=1) - 0.5
+
+
+def test_follows_the_object_to_a_fraction_of_a_pixel():
+    frames, truth = _clip()
+    found = follow_best(frames, measure_paths(frames, MAX_OBJECTS)[0])
+    assert found is not None and not found.hidden.any()
+    err = np.linalg.norm(found.xy - truth, axis=1)
+    assert float(np.sqrt(np.mean(err ** 2))) < 0.3
+    assert np.all(found.sigma > 0) and np.all(found.sigma < 1.0)
+
+
+def test_hidden_frames_are_marked_not_filled_with_what_covers_the_object():
+    frames, truth = _clip(cover=(20, 26))
+    found = follow_best(frames, measure_paths(frames, MAX_OBJECTS)[0])
+    assert found is not None
+    covered = np.zeros(len(frames), bool)
+    covered[20:26] = True
+    # every covered frame is hidden, or placed on the object, never on the bar beside it
+    err = np.linalg.norm(found.xy - truth, axis=1)
+    assert np.all(found.hidden[covered] | (err[covered] < 1.0))
+    assert found.hidden[covered].sum() >= 3
+    # and the object is taken up again once the bar has passed
+    assert np.all(err[~covered] < 0.5)
+
+
+def test_the_choice_keeps_the_change_detector_where_it_sees_one_object_or_both_agree():
+    frames, truth = _clip()
+    paths = measure_paths(frames, MAX_OBJECTS)[0]
+    path, how = choose(frames, paths)
+    assert how == "the change from the static scene"
+    assert np.array_equal(path, paths[0], equal_nan=True)
+    # with a second moving object in view the object tracker is asked, and agrees with it
+    two = np.concatenate([paths[:1], paths[:1] + np.array([0.0, 30.0])])
+    path, how = choose(frames, two, follow_best(frames, paths))
+    assert how.startswith("the change from the static scene (the object tracker agrees")
+    assert np.array_equal(path, paths[0], equal_nan=True)
+
