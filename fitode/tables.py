@@ -3,7 +3,7 @@
 estimates.csv: one row per learnable constant, ESTIMATE_COLUMNS (restart_spread is result.json's
 "std": the spread of the restarts, not the uncertainty; the interval is that).
 track.csv: one row per frame used: time_s (video seconds), frame (index in the source video),
-then per state S: S (the measured state in its unit, S_px or S_m with --scale; a free encoder's
+then per state S: S (the measured state in its unit, "S [px]" or "S [m]" with --scale, y up; a free encoder's
 latent; or the calibrated value in physical units when --calibrate was applied), S_fit (the equation's rollout), S_residual (S - S_fit), then what was measured in the
 source video's pixels where result.json's "measurement" has it (MEASURED_COLUMNS: the tracked
 point x_px, y_px; the apparent radius radius_px).
@@ -64,9 +64,10 @@ MEASURED_COLUMNS = {"track": ("x_px", "y_px"), "radii": ("radius_px",)}
 
 def track_header(states: Iterable[str], measured: Iterable[str] = (),
                  units: Mapping[str, str] | None = None) -> list[str]:
-    """The columns; a state measured in a unit (px, or m with --scale) says it: y_px, y_fit_px."""
+    """The columns; a state measured in a unit (px, or m with --scale) says it in brackets: "y [px]",
+    "y_fit [px]" (the tracked point's x_px, y_px are the image's, y down)."""
     states, units = list(states), dict(units or {})
-    unit = {s: f"_{units[s]}" if units.get(s) else "" for s in states}
+    unit = {s: f" [{units[s]}]" if units.get(s) else "" for s in states}
     return (["time_s", "frame"] + [f"{s}{unit[s]}" for s in states] + [f"{s}_fit{unit[s]}" for s in states]
             + [f"{s}_residual{unit[s]}" for s in states] + [c for key in measured for c in MEASURED_COLUMNS[key]])
 

@@ -83,3 +83,11 @@ def test_a_run_folder_holds_both_tables_equal_to_result_json(tmp_path):
     assert [float(r["I"]) for r in track] == [z[0] for z in traj["latent"]]
     assert [float(r["I_fit"]) for r in track] == [z[0] for z in traj["rollout"]]
     assert int(track[0]["frame"]) == 5  # --start 0.5 at 10 fps
+
+
+def test_track_columns_say_a_measured_states_unit_apart_from_the_image_pixels():
+    from fitode.tables import track_header
+    header = track_header(["y"], ["track"], {"y": "px"})
+    assert header == ["time_s", "frame", "y [px]", "y_fit [px]", "y_residual [px]", "x_px", "y_px"]
+    assert len(set(header)) == len(header)
+    assert track_header(["y"], (), None)[2:] == ["y", "y_fit", "y_residual"]
