@@ -78,8 +78,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def clip_list(cases: list[str], seed: int, per_case: int = PER_CASE) -> list[dict[str, Any]]:
-    """The fixed list of clips: one seeded draw of constants and conditions per clip, cases interleaved
-    so that the first N clips cover every case."""
+    """The fixed list of clips: one seeded draw of constants and conditions per clip. The single-stretch
+    cases come first, interleaved so that their first N clips cover each of them, and are the same
+    clips as before the pieces cases were added (`--clips 48` is the earlier list); the pieces cases
+    (holds, bounces, rests) follow, interleaved among themselves, drawn from a seed of their own."""
     rng = np.random.default_rng(seed)
     cases = [c for c in cases if c not in missing_cases()]
     out = []

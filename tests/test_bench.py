@@ -206,7 +206,12 @@ def test_coverage_list_is_fixed_covers_every_case_and_counts_as_defined():
     first, again = coverage.clip_list(list(coverage.CASES), 0), coverage.clip_list(list(coverage.CASES), 0)
     assert first == again and len(first) >= 40
     here = set(coverage.CASES) - set(coverage.missing_cases())
-    assert {t["case"] for t in first[: len(here)]} == here
+    single, pieces = here - set(coverage.PIECES_CASES), set(coverage.PIECES_CASES) & here
+    assert {t["case"] for t in first[: len(single)]} == single  # the earlier list, unchanged, first
+    n_single = len(single) * coverage.PER_CASE
+    assert {t["case"] for t in first[:n_single]} == single
+    assert {t["case"] for t in first[n_single: n_single + len(pieces)]} == pieces
+    assert len({t["seed"] for t in first}) == len(first)  # every clip its own draw
     assert "led-linear" in here and any(t["scene_kwargs"].get("curve") == "linear" for t in first if "scene" in t)
     latent = {"truth": 1.0, "estimate": 1.0, "interval": [0.9, 1.1], "verdict": "not trustworthy", "latent_units": True}
     assert not coverage.judge(latent)["covered"] and not coverage.judge(latent)["has_interval"]
