@@ -87,18 +87,30 @@ def _falling_disc(n=48, dt=1 / 60, g=250.0):
 
 
 @pytest.mark.slow
-def test_fit_calibrates_behind_the_api_and_judges_the_calibrated_value():
+def test_fit_calibrates_behind_the_api_and_judges_the_calibrated_value(tmp_path):
+    # the disc's place is measured in source pixels along its line of motion, so uncalibrated g is
+    # in px/s^2 (trusted); --calibrate in metres (2 mm a pixel) maps it through the scale into the
+    # unit the equation file gives
     frames, d, dt = _falling_disc()
     t_end = (len(d) - 1) * dt
-    res = fitode.fit(frames, dt, eq="d'' = g", free=["g"], progress=False,
-                     calibrate=f"d(0)={d[0]:.4f}; d({t_end:.6f})={d[-1]:.4f}")
+    metres_per_px = 0.002
+    eq_file = tmp_path / "fall.toml"
+    eq_file.write_text('name = "fall"\nequation = "d\'\' = g"\nobserve = "position"\n\n'
+                       '[parameters]\ng = { init = 1.0, unit = "m/s^2" }\n')
+    res = fitode.fit(frames, dt, eq_file=str(eq_file), progress=False,
+                     calibrate=f"d(0)={metres_per_px * d[0]:.6f}; d({t_end:.6f})={metres_per_px * d[-1]:.6f}")
     g = res.parameters["g"]
-    assert g.calibrated and g.latent_value is not None and abs(g.latent_value - g.value) > 1
-    assert abs(g.value / 250.0 - 1) < 0.03, g
+    assert g.calibrated and g.unit == "m/s^2" and g.latent_value is not None, g
+    assert abs(g.latent_value / 250.0 - 1) < 0.03, g  # the measured path's px/s^2
+    assert abs(g.value / (250.0 * metres_per_px) - 1) < 0.03, g
+    scale = res.calibration["maps"]["d"]["a"]
+    assert abs(scale / metres_per_px - 1) < 0.03 and g.value == pytest.approx(scale * g.latent_value, rel=1e-9)
     assert res.verdicts["g"]["verdict"] == "trusted", res.verdicts
     assert res.calibration["maps"]["d"]["n_points"] == 2
     raw = fitode.fit(frames, dt, eq="d'' = g", free=["g"], progress=False)
-    assert raw.verdicts["g"]["verdict"] == "not trustworthy" and "calibrate" in raw.verdicts["g"]["reason"]
+    assert not raw.parameters["g"].calibrated and raw.parameters["g"].unit == "px/s^2", raw.parameters["g"]
+    assert raw.values["g"] == pytest.approx(g.latent_value, rel=1e-6)
+    assert raw.verdicts["g"]["verdict"] == "trusted", raw.verdicts
 
 
 def test_the_header_says_a_measured_path_is_fitted_directly_not_trained():
