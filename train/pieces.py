@@ -38,6 +38,9 @@ HOLD_SHARE = 0.03  # a first or last piece that travels less than this share of 
 SIDE_S = 0.12     # seconds each side a velocity is read from, SIDE_FRAMES frames at least and at most
 SIDE_FRAMES = (5, 12)
 GAP = 1           # ... leaving out this many at the frame: the impact falls between two frames
+KINK = 4.0        # ... and no smooth motion runs through the frames around it: a quartic across both
+#                   sides misses them by this many times the noise (a swing's turning point, read
+#                   from coarse frames, has sides whose parabolas disagree, but a quartic follows it)
 JOIN = 2.0     # two neighbours are one trajectory where it misses their union by at most this many times
 #                their own misfits (or the noise)
 
@@ -128,6 +131,8 @@ def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tu
         # a bounce turns the motion round, fast either side: a release (from rest) or a swing's
         # turning point (as slow on both sides) does not
         ok = (jump > JUMP * sigma) & (va * vb < 0) & (np.minimum(np.abs(va), np.abs(vb)) > MOVING * sigma)
+        if ok.any() and _smooth_misfit(x[i - GAP - SIDE + 1:i + GAP + SIDE]) <= KINK * noise:
+            continue  # one smooth motion turns round here: no impact
         score[i] = float((jump * ok).max()) / sigma
     out: list[tuple[int, int]] = []
     for i in np.flatnonzero(score > 0):
@@ -137,6 +142,14 @@ def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tu
             continue
         out.append((int(i - GAP), int(i + GAP + 1)))
     return out
+
+
+def _smooth_misfit(y: np.ndarray) -> float:
+    """The RMS by which a quartic in time, fitted to the frames y (n, k), misses them."""
+    t = np.linspace(-1.0, 1.0, len(y))
+    a = np.stack([t ** p for p in range(5)], axis=1)
+    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+    return float(np.sqrt(np.mean(np.square(a @ coef - y))))
 
 
 def _slope_weights(t: np.ndarray) -> np.ndarray:
