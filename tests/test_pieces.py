@@ -76,6 +76,22 @@ def test_one_swing_is_one_piece():
     assert pieces.spans == [(0, 400)] and not [e for e in pieces.events if e.kind == "bounce"]
 
 
+def test_a_coarsely_sampled_swing_is_one_piece():
+    # the paper's motion video: 16 frames a period, so each side's velocity is read over a third of
+    # it and every turning point looks like a bounce; one trajectory explains it all, so none is
+    dt, period = 0.2, np.pi
+    x = np.cos(2 * np.pi * np.arange(200) * dt / period) + np.random.default_rng(4).normal(0, 1e-3, 200)
+    assert len(impacts(x[:, None], 1e-3, 0, 200, dt)) > 10  # what the velocities alone say
+
+    def fit(a, b):
+        t = np.arange(a, b) * dt * 2 * np.pi / period
+        basis = np.stack([np.cos(t), np.sin(t)], axis=1)
+        coef = np.linalg.lstsq(basis, x[a:b], rcond=None)[0]
+        return (basis @ coef - x[a:b])[:, None]
+    pieces = find_pieces(x[:, None], dt, fit)
+    assert pieces.spans == [(0, 200)] and pieces.events == []
+
+
 def test_the_constants_shared_by_the_flights_are_fitted_together_and_narrower():
     x, _ = bouncing(noise=0.2, seed=4)
     spans = find_pieces(x[:, None], DT, parabola_fit(x)).spans

@@ -172,6 +172,13 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
     lo, hi = int(moving[0]), int(moving[-1]) + 1
     noise = noise_level(x[lo:hi]) if hi - lo >= 8 else noise_all
     cuts = impacts(x, noise, lo, hi, dt)
+    if cuts:
+        # a velocity that turns round is no impact where one trajectory explains every frame that
+        # moves: a swing sampled coarsely (the paper's motion video, 16 frames a period) turns round
+        # within the frames each side's velocity is read from, and was cut at every turning point
+        whole = _rms(fit(lo, hi))
+        if whole is not None and whole <= TOL * noise:
+            cuts = []
     # the stretches between impacts, each searched for the part one trajectory explains (a rest
     # before the first or after the last is found there, as the single stretch finds it)
     bounds = [0] + [v for c in cuts for v in c] + [T]
