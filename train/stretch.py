@@ -41,6 +41,8 @@ RUN_SLACK = 0.02  # a one-way run may turn back by this share of the path's trav
 RUN_JUMP = 0.2    # ... and breaks at a step longer than this share of it
 MAIN_RUN = 0.5    # a one-way run over this share of the travel is the motion: one seed is its middle
 MAIN_SLACK = 0.0075  # ... grown while one trajectory misses the new frames by at most this share of the travel
+HELD_SHARE = 0.25  # a path that never rests is cut by the search only where what it leaves out before the
+                   # stretch travels less than this share of the stretch (a hand that holds it, nearly still)
 
 
 @dataclass
@@ -163,6 +165,13 @@ def find_stretch(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray 
             if grown is not None and reach(grown) > reach(best):
                 best = grown
     if best is None:
+        best = (0, T)
+    if not rest.any() and reach((0, best[0])) >= HELD_SHARE * reach(best):
+        # a path that never rests is searched for a hand that holds it before the motion (search):
+        # what the search leaves out before the stretch must go nearly nowhere. Where it moves as
+        # the stretch does, the search's short fits have missed a long path they would fit from a
+        # better start (the two oscillators' 8 s cut to their last 2 s: a 4.42 for 4.0): the clip
+        # is the motion. (Its end may be cut: a long real swing leaves an idealised equation.)
         best = (0, T)
     return Stretch(best[0], best[1], _why_start(best[0], rest, dt), _why_end(best[1], T, rest, dt), noise)
 
