@@ -117,7 +117,7 @@ def understanding_lines(ode, spec, analysis, clip, plan) -> list[str]:
 
 def length_lines(observation) -> list[str]:
     """How a measured length reads: source pixels (y up), or metres through a scale stick."""
-    if not observation.measured or observation.physical_units:
+    if not observation.reads_lengths:
         return []
     lengths = observation.lengths
     if lengths.metres_per_px:

@@ -158,7 +158,9 @@ def test_errors_in_a_real_process_stay_one_line(tmp_path):
 # ----------------------------------------------------------------------------- a run
 def test_run_writes_the_folder_and_json_goes_to_stdout(video, tmp_path, capsys):
     out_dir = tmp_path / "out"
-    code, out, err = run([video, "--eq", EQ, "--out", out_dir, "--json", "--init", "gamma=0.3", *TINY], capsys)
+    # the encoder's training (--observe any): its settings and history are what this run records
+    code, out, err = run([video, "--eq", EQ, "--out", out_dir, "--json", "--init", "gamma=0.3", "--observe", "any",
+                          *TINY], capsys)
     assert code == 0, err
     report = json.loads(out)  # stdout is pure JSON
     assert report == json.loads((out_dir / "result.json").read_text())

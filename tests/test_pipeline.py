@@ -29,7 +29,9 @@ def video(tmp_path_factory) -> Path:
 def test_run_video_returns_the_outcome(video, tmp_path):
     lines: list[str] = []
     seen = []
-    out = run_job(video, tmp_path / "o", eq=EQ, log=lines.append, callback=seen.append, seed=1, **TINY)
+    # an encoder trained (observe "any"): the callback sees its steps (a measured light is fitted directly)
+    out = run_job(video, tmp_path / "o", eq=EQ, log=lines.append, callback=seen.append, seed=1, observe="any",
+                  **TINY)
     assert isinstance(out, RunOutcome) and out.out_dir == tmp_path / "o"
     assert out.report == json.loads((out.out_dir / "result.json").read_text())
     assert out.report["status"] == "complete" and out.warnings == out.report["warnings"]
@@ -75,7 +77,7 @@ def test_interrupt_leaves_an_interrupted_folder(video, tmp_path):
         if info.run == 1 and info.step == 4:
             raise KeyboardInterrupt
     with pytest.raises(KeyboardInterrupt):
-        run_job(video, tmp_path / "i", eq=EQ, log=None, callback=stop, **TINY)
+        run_job(video, tmp_path / "i", eq=EQ, log=None, callback=stop, observe="any", **TINY)
     folder = tmp_path / "i"
     report = json.loads((folder / "result.json").read_text())
     assert report["status"] == "interrupted" and report["stage"] == "training" and "interrupted" in report["error"]
@@ -98,7 +100,7 @@ def test_interrupt_before_any_estimate_keeps_the_history(video, tmp_path):
         if info.run == 0 and info.step == 3:
             raise KeyboardInterrupt
     with pytest.raises(KeyboardInterrupt):
-        run_job(video, tmp_path / "i", eq=EQ, log=None, callback=stop, **TINY)
+        run_job(video, tmp_path / "i", eq=EQ, log=None, callback=stop, observe="any", **TINY)
     folder = tmp_path / "i"
     report = json.loads((folder / "result.json").read_text())
     assert report["status"] == "interrupted" and report["input"]["sha256"]
@@ -125,7 +127,8 @@ def test_real_ctrl_c(video, tmp_path):
     out = tmp_path / "ctrl-c"
     p = subprocess.Popen([sys.executable, "-m", "fitode", str(video), "--eq", EQ, "--out", str(out), "--quiet",
                           "--max-steps", "100000", "--min-steps", "100000", "--window", "8", "--stride", "1",
-                          "--restarts", "1"],  # one restart: no search for data starts before training
+                          "--restarts", "1", "--observe", "any"],  # one restart: no search for data starts
+                         # before training; an encoder trained (a measured light is fitted at once)
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     try:
         deadline = time.time() + 120

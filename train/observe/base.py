@@ -173,6 +173,11 @@ class ObservationModel:
         return {"score": free, "quiet": free, "rivals": free, "trajectory": self.measured,
                 "perspective": False, "direct": self.measured, "periods": free}[check]
 
+    @property
+    def reads_lengths(self) -> bool:
+        """Whether the measured latent is a length on the frames (px, or metres with a scale)."""
+        return self.measured and not self.physical_units
+
     def fixes_scale(self) -> bool:
         """Whether the latent fixes the state's units, so that a constant whose value depends on
         them (g in a fall, k in a drain) is measured without calibration."""

@@ -56,6 +56,10 @@ class BrightnessObservation(ObservationModel):
         return ("srgb (as asked: pixel values decoded to linear light)" if self.light == "srgb"
                 else "linear (as asked: pixel values read as linear light)")
 
+    @property
+    def reads_lengths(self) -> bool:
+        return False  # light has no length: no pixels or metres to say
+
     def applies(self, check: str) -> bool:
         # decoded light cannot follow only a transient: where it slows, the light does (a decay
         # near rest, which still changes many pixels). A linear read of one principal component is
@@ -71,6 +75,12 @@ class BrightnessObservation(ObservationModel):
         self.settle(frames[:fit_frames])
         out = super().prepare(where_light_changes(self.decoded(frames), fit_frames), architecture, fit_frames)
         self.one_path = architecture == "linear" and out.rank == 1 and self.subspace
+        # one component read linearly is a measured path in arbitrary units, as a size is in
+        # pixels: the trajectory fitter takes it directly (train/direct.py), with the checks of a
+        # measured path, instead of training an encoder to learn only its scale and offset
+        self.measured = self.one_path
+        if self.one_path and self.equation_states:
+            out = replace(out, states=self.equation_states[:1])
         how = "decoded from sRGB to linear light" if self.light == "srgb" else "read as linear light (light=linear)"
         caution = self.curve.caution if self.curve is not None else None
         if caution and out.caution:
