@@ -438,15 +438,17 @@ def _held_out(system, params: Mapping, x: np.ndarray, dt: float, centre: np.ndar
 
 def combine(value: float, boot: Bootstrap | None, name: str, *, rate_std: float = 0.0, relative: float = 0.0,
             restarts: float = 0.0, gap: float = 0.0, encoder: bool = False, scale_std: float = 0.0,
-            rival: float = 0.0, one_way: bool = False, level: float = LEVEL) -> Interval | None:
+            rival: float = 0.0, one_way: bool = False, floor: float = ENCODER_FLOOR,
+            level: float = LEVEL) -> Interval | None:
     """One constant's interval about `value` from the bootstrap's shares and the caller's:
     rate_std (relative std of the frame rate), scale_std (relative std of the measurement's
     scale: an angle's pivot), relative (a relative std from elsewhere: the calibration), restarts (the kept restarts' std, widened here), encoder (add the bends'
     share: a learned latent), gap (a difference between two estimates of the same constant,
     added as a bias) and rival (the distance to the farthest restart left out that tells the
     frames apart as well, selection.rivals: the clip cannot choose between them, so the interval
-    reaches it); one_way: a learned latent that runs one way, whose bends are ONE_WAY_BEND. None
-    without a bootstrap."""
+    reaches it); one_way: a learned latent that runs one way, whose bends are ONE_WAY_BEND; floor:
+    the least the bends' share is, relative to the value (ENCODER_FLOOR; a light reading's own).
+    None without a bootstrap."""
     from statistics import NormalDist
     if boot is None or not math.isfinite(boot.std.get(name, math.nan)):
         return None
@@ -461,7 +463,7 @@ def combine(value: float, boot: Bootstrap | None, name: str, *, rate_std: float 
               "calibration": abs(value) * relative,
               "restarts": RESTART_WIDEN * restarts,
               "encoder": math.hypot(boot.bend.get(name, 0.0) * scale * (ONE_WAY_BEND / BEND if one_way else 1.0),
-                                    ENCODER_FLOOR * abs(value)) if encoder else 0.0}
+                                    floor * abs(value)) if encoder else 0.0}
     half = math.hypot(z * math.sqrt(sum(s * s for s in shares.values())), gap, rival)
     shares["gap"] = abs(gap)
     shares["rivals"] = abs(rival)
@@ -485,7 +487,9 @@ def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
 
     x = _path(result, best)
     settings = result.settings
-    learned = not result.meta.get("measured")
+    # a path that can bend unseen: a learned latent, or a light read linearly (observe.base.can_bend)
+    learned = bool(result.meta.get("bends", not result.meta.get("measured")))
+    floor = result.meta.get("bend_floor") or ENCODER_FLOOR
     recorded = result.meta.get("trajectory") if isinstance(result.meta.get("trajectory"), Mapping) else {}
     frames, pieces = recorded.get("frames"), recorded.get("pieces")
     # an angle's pivot moved: the path of one stretch read again (the pieces' frames are not one span)
@@ -508,7 +512,7 @@ def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
         restarts = est.std if est.n_runs > 1 and name not in own else 0.0
         rival = max((abs(r.value(name) - path_value) for r in rivals(result, name)), default=0.0) * ratio
         iv = combine(est.value, boot, name, rate_std=rate_std, relative=(calibration or {}).get(name, 0.0),
-                     restarts=restarts, gap=gap, encoder=learned, scale_std=scale_std, rival=rival,
+                     restarts=restarts, gap=gap, encoder=learned, scale_std=scale_std, rival=rival, floor=floor,
                      one_way=learned and bool(result.checks.get("one_way")) and settings.get("encoder") != "linear")
         if iv is not None:
             out[name] = _light_curve(iv, boot, name, result.checks.get("light_curve"))

@@ -88,7 +88,9 @@ class FitResult:
         measured path needed); selection_factor: a run within this factor of the lowest loss is selected.
     meta: what the fit found out about the clip, by key (written by train.trainer.fit_frames unless said):
         plan: the FitPlan's choices with their reasons; measured: the observation measures the
-        state (a path, not a learned latent); physical_units: every state is in a unit of its own
+        state (a path, not a learned latent); bends: the path can bend where the frames do not hold
+        it (a learned latent, a light read linearly), so its interval takes the bends' share; bend_floor: the least share of the value that is (None:
+        train.interval.ENCODER_FLOOR); physical_units: every state is in a unit of its own
         (radians, px or m), so no constant waits for a calibration; units: state -> the unit its
         measured path was fitted in ("px", or "m" with a scale stick; {} for a learned latent);
         length: how a length read (unit, frame_scale: source pixels per frame pixel,

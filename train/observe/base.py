@@ -174,6 +174,12 @@ class ObservationModel:
                 "perspective": False, "direct": self.measured, "periods": free}[check]
 
     @property
+    def can_bend(self) -> bool:
+        """Whether the latent can bend where the frames do not hold it, which no residual shows
+        (the interval then takes the bends' share: train/interval.py): a learned latent can."""
+        return not self.measured
+
+    @property
     def reads_lengths(self) -> bool:
         """Whether the measured latent is a length on the frames (px, or metres with a scale)."""
         return self.measured and not self.physical_units

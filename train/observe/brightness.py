@@ -56,6 +56,17 @@ class BrightnessObservation(ObservationModel):
         return ("srgb (as asked: pixel values decoded to linear light)" if self.light == "srgb"
                 else "linear (as asked: pixel values read as linear light)")
 
+    # a camera's curve is sRGB only roughly and a codec holds back small changes (a faint change
+    # decays late), so light read linearly is off by more than its residuals show: fitted
+    # directly, 16 of 16 generated lamps came out 0.3-2% slow with residual intervals of
+    # +-0.5-1.5% (1 to 3 of 16 outside their 99% interval in `bench/coverage.py --cases
+    # led,led-linear`). The bends' share, at least this much of the rate, holds them.
+    bend_floor = 0.01
+
+    @property
+    def can_bend(self) -> bool:
+        return True
+
     @property
     def reads_lengths(self) -> bool:
         return False  # light has no length: no pixels or metres to say
