@@ -40,7 +40,11 @@ SIDE_FRAMES = (5, 12)
 GAP = 1           # ... leaving out this many at the frame: the impact falls between two frames
 KINK = 4.0        # ... and no smooth motion runs through the frames around it: a quartic across both
 #                   sides misses them by this many times the noise (a swing's turning point, read
-#                   from coarse frames, has sides whose parabolas disagree, but a quartic follows it)
+#                   from coarse frames, has sides whose parabolas disagree, but a quartic follows it),
+KINK_SHARP = (1.5, 1.5)  # or by this many times the noise and this many times what a parabola each
+#                   side misses them by (a fast bounce read from few frames: a quartic rounds its
+#                   corner to within KINK noise, the two parabolas follow it; a swing's turn is the
+#                   other way round, its sides' parabolas miss it 4 times more than the quartic)
 JOIN = 2.0     # two neighbours are one trajectory where it misses their union by at most this many times
 #                their own misfits (or the noise)
 
@@ -131,7 +135,7 @@ def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tu
         # a bounce turns the motion round, fast either side: a release (from rest) or a swing's
         # turning point (as slow on both sides) does not
         ok = (jump > JUMP * sigma) & (va * vb < 0) & (np.minimum(np.abs(va), np.abs(vb)) > MOVING * sigma)
-        if ok.any() and _smooth_misfit(x[i - GAP - SIDE + 1:i + GAP + SIDE]) <= KINK * noise:
+        if ok.any() and not _kinked(x[i - GAP - SIDE + 1:i + GAP + SIDE], SIDE, noise):
             continue  # one smooth motion turns round here: no impact
         score[i] = float((jump * ok).max()) / sigma
     out: list[tuple[int, int]] = []
@@ -142,6 +146,24 @@ def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tu
             continue
         out.append((int(i - GAP), int(i + GAP + 1)))
     return out
+
+
+def _kinked(y: np.ndarray, side: int, noise: float) -> bool:
+    """Whether the frames y (n, k) around a frame turn round at a corner, not smoothly: a quartic
+    across them misses them by KINK times the noise, or by KINK_SHARP's times the noise and what a
+    parabola fitted to each side's `side` frames misses those by."""
+    smooth = _smooth_misfit(y)
+    if smooth > KINK * noise:
+        return True
+    sides = np.concatenate([_parabola_residual(y[:side]), _parabola_residual(y[-side:])])
+    return smooth > KINK_SHARP[0] * noise and smooth > KINK_SHARP[1] * float(np.sqrt(np.mean(np.square(sides))))
+
+
+def _parabola_residual(y: np.ndarray) -> np.ndarray:
+    t = np.arange(len(y), dtype=np.float64)
+    a = np.stack([np.ones_like(t), t, t * t], axis=1)
+    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+    return a @ coef - y
 
 
 def _smooth_misfit(y: np.ndarray) -> float:
