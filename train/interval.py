@@ -214,6 +214,22 @@ class _Batch:
         self.m = len(self.names)
         self.p = self.m + len(self.lengths) * self.nc * self.k
         self.weight = 1.0 / np.maximum(x.std(axis=0), 1e-24)  # every state counts equally, as fit_trajectory's
+        self.state_weight = self.weight
+
+    def weigh_pieces(self, resid: np.ndarray) -> np.ndarray:
+        """Weigh each piece by its own noise, from the residuals (T, k) of a fit: a flight read
+        near the bumper, or a bounce far from the camera, is measured less well than another, and
+        pooled with it would both widen the interval and pull the constants its way. Returns each
+        frame's residual spread relative to all pieces' (T, k; ones for one piece), by which the
+        weight is divided; a piece's spread counts the starting frames its own fit took up."""
+        rel = np.ones_like(resid)
+        if len(self.lengths) > 1:
+            pooled = np.sqrt(np.mean(resid ** 2, axis=0))
+            for f, n in zip(self.firsts, self.lengths):
+                own = np.sqrt(np.mean(resid[f:f + n] ** 2, axis=0) * n / max(n - self.nc, 1))
+                rel[f:f + n] = np.maximum(own, 1e-3 * pooled) / np.maximum(pooled, 1e-300)
+        self.weight = self.state_weight / rel
+        return rel
 
     def starts(self, x: np.ndarray) -> np.ndarray:
         """The starting frames of every piece of x (T, k), flat, as theta carries them."""
@@ -238,7 +254,7 @@ class _Batch:
         state's spread for the starting frames."""
         h = np.empty_like(theta)
         h[:, : self.m] = 1e-6 * np.maximum(np.abs(theta[:, : self.m]), 1e-6)
-        h[:, self.m:] = np.tile(1e-6 / self.weight, self.nc * len(self.lengths))[None, :]
+        h[:, self.m:] = np.tile(1e-6 / self.state_weight, self.nc * len(self.lengths))[None, :]
         return h
 
     def cost(self, theta: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -362,11 +378,18 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
             centre = batch.gauss_newton(theta0, x[None], CENTRE_ITERATIONS)
             if not np.all(np.isfinite(centre)):
                 return None
+            if len(batch.lengths) > 1:  # each piece weighed by its own noise, and resampled at it
+                rel = batch.weigh_pieces(x - batch.roll(centre)[0])
+                centre = batch.gauss_newton(centre, x[None], CENTRE_ITERATIONS)
+                if not np.all(np.isfinite(centre)):
+                    return None
+            else:
+                rel = np.ones_like(x)
             fitted = batch.roll(centre)[0]
             resid = x - fitted
-            block = block_length(resid)
+            block = block_length(resid / rel)
             rng = np.random.default_rng(seed)
-            targets = np.stack([fitted + resample_blocks(resid, block, rng) for _ in range(iterations)])
+            targets = np.stack([fitted + resample_blocks(resid / rel, block, rng) * rel for _ in range(iterations)])
             draws = batch.chord(centre, targets, refit_iterations)
             draws = draws[np.all(np.isfinite(draws), axis=1)]
             if len(draws) < max(2, MIN_KEPT * iterations):
@@ -380,7 +403,7 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
     except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError, FitodeError):
         return None  # (FitodeError: a refit ran a constant off to no number, on a path of noise)
     names, m = batch.names, batch.m
-    rho = correlation(resid)
+    rho = correlation(resid / rel)
     spread = np.std(draws[:, :m], axis=0, ddof=1) * block_bias(rho, block) * leverage(len(x), batch.p, rho)
     # the same path read with a longer dt: the constants that make the stretched-time rollout
     # match it, i.e. the constants' sensitivity to the frame rate (a pure power of time or not)
@@ -393,7 +416,7 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
                      std={n: float(s) for n, s in zip(names, spread)}, timing=timing, block=block,
                      iterations=iterations, kept=len(draws), quantile=t_quantile(level, len(draws) - 1),
                      wall_s=time.perf_counter() - began,
-                     misfit=float(np.sqrt(np.mean((resid * batch.weight) ** 2))),
+                     misfit=float(np.sqrt(np.mean((resid * batch.state_weight) ** 2))),
                      residual_rms=[float(v) for v in np.sqrt(np.mean(resid ** 2, axis=0))],
                      held_out=held_out, bend=bend, scaling=scaling, geometry=geometry)
 

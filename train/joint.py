@@ -86,6 +86,9 @@ def _fit(system, params, x: np.ndarray, dt: float, lengths: list[int], start: Ma
             return None, None, None, None
         theta0 = np.concatenate([[float(start[n]) for n in batch.names], batch.starts(x)])[None]
         theta = batch.gauss_newton(theta0, x[None], 4 * CENTRE_ITERATIONS)
+        if len(lengths) > 1 and np.all(np.isfinite(theta)):
+            batch.weigh_pieces(x - batch.roll(theta)[0])  # each piece at its own noise
+            theta = batch.gauss_newton(theta, x[None], 4 * CENTRE_ITERATIONS)
         if not np.all(np.isfinite(theta)):
             return None, None, None, None
         rolled, jac = batch.jacobian(theta)
@@ -98,7 +101,7 @@ def _fit(system, params, x: np.ndarray, dt: float, lengths: list[int], start: Ma
     cov = np.linalg.pinv(jac[0] @ jac[0].T, rcond=1e-13) * float(r @ r) / dof * (1 + lag) / (1 - lag)
     values = {n: float(theta[0, i]) for i, n in enumerate(batch.names)}
     errors = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(batch.names)}
-    misfit = float(np.sqrt(np.mean(r ** 2)))
+    misfit = float(np.sqrt(np.mean(((rolled[0] - x) * batch.state_weight) ** 2)))
     if not all(math.isfinite(v) for v in [*values.values(), *errors.values(), misfit]):
         return None, None, None, None
     return values, errors, misfit, rolled[0]
