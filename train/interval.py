@@ -83,6 +83,7 @@ CURVE_POWER = 2.4
 BLOCK_TIMES = 3  # blocks three autocorrelation times long: what is left is block_bias's
 DAMPINGS = (1e-9, 1e-5, 1e-2, 1.0)  # Levenberg-Marquardt dampings tried at once, relative to the diagonal
 HELD_OUT = 0.25  # the last quarter of the path, predicted from a fit of the rest
+HELD_OUT_REPLICAS = 16  # ... and of as many of the bootstrap's paths, where the equation holds by construction
 MIN_KEPT = 0.6  # fewer refits than this fraction succeeded: no interval from the residuals
 RATE_CONTAINER_STD = 3e-4  # the container's nominal rate: 59.985 stated against 60.000 stamped (bob clip)
 RATE_GIVEN_STD = 0.0  # --fps: the user states the rate
@@ -124,6 +125,7 @@ class Bootstrap:
     misfit: float  # the one trajectory's RMS residual over each state's spread
     residual_rms: list[float]  # per state, in the path's units
     held_out: float | None = None  # the held-out prediction's miss over the residuals there (_held_out)
+    held_out_null: float | None = None  # ... the largest of it over HELD_OUT_REPLICAS resampled paths
     bend: dict[str, float] = field(default_factory=dict)  # the constants' RMS change under BEND-sized bends
     scaling: dict[str, float] = field(default_factory=dict)  # d constant / d log(the path's scale)
     geometry: dict[str, float] = field(default_factory=dict)  # the constants' std from the measurement's geometry (moves)
@@ -133,7 +135,7 @@ class Bootstrap:
                 "iterations": self.iterations, "kept": self.kept, "t_quantile": self.quantile,
                 "wall_s": self.wall_s, "trajectory": dict(self.values), "std": dict(self.std),
                 "dlog_dt": dict(self.timing), "misfit": self.misfit, "residual_rms": list(self.residual_rms),
-                "held_out": self.held_out, "bend": dict(self.bend), "dlog_scale": dict(self.scaling),
+                "held_out": self.held_out, "held_out_null": self.held_out_null, "bend": dict(self.bend), "dlog_scale": dict(self.scaling),
                 "geometry": dict(self.geometry)}
 
 
@@ -396,8 +398,9 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
                 return None
             stretched = batch.gauss_newton(centre, batch.roll(centre, dt * (1 + TIME_STEP)), refit_iterations)
             scaled = batch.chord(centre, fitted[None] * (1 + SCALE_STEP), refit_iterations)
-            held_out = _held_out(system, params, x, dt, centre, integrator, substeps) \
-                if len(batch.lengths) == 1 else None
+            held_out, held_null = _held_out(system, params, x, dt, centre, integrator, substeps,
+                                            targets[:HELD_OUT_REPLICAS]) \
+                if len(batch.lengths) == 1 else (None, None)
             bend = bends(batch, centre, fitted, refit_iterations) if learned else {}
             moved = batch.chord(centre, fitted[None] + np.stack(moves), refit_iterations) if moves else None
     except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError, FitodeError):
@@ -418,7 +421,7 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
                      wall_s=time.perf_counter() - began,
                      misfit=float(np.sqrt(np.mean((resid * batch.state_weight) ** 2))),
                      residual_rms=[float(v) for v in np.sqrt(np.mean(resid ** 2, axis=0))],
-                     held_out=held_out, bend=bend, scaling=scaling, geometry=geometry)
+                     held_out=held_out, held_out_null=held_null, bend=bend, scaling=scaling, geometry=geometry)
 
 
 def bends(batch: _Batch, centre: np.ndarray, fitted: np.ndarray, iterations: int) -> dict[str, float]:
@@ -439,24 +442,33 @@ def bends(batch: _Batch, centre: np.ndarray, fitted: np.ndarray, iterations: int
 
 
 def _held_out(system, params: Mapping, x: np.ndarray, dt: float, centre: np.ndarray, integrator: str,
-              substeps: int) -> float | None:
+              substeps: int, replicas: np.ndarray | None = None) -> tuple[float | None, float | None]:
     """How much worse the equation predicts the last HELD_OUT of the path, fitted without it,
     than the one trajectory fitted to all of it follows it there: the RMS of the prediction's
     miss over the RMS of the one trajectory's residuals on the same frames (about 1 where the
-    equation explains the clip; None where the rest cannot be fitted)."""
+    equation explains the clip and its residuals are white; None where the rest cannot be fitted);
+    and the largest such ratio over `replicas` (N, T, k): the one trajectory with its residuals
+    resampled in blocks, which the equation explains by construction. Residuals that hang together
+    over many frames (a tracker's slow error, 4 times the frame-to-frame noise on a released swing)
+    move a short fit's prediction by several times themselves: that is the size the ratio reaches
+    without any fault of the equation (None without replicas)."""
     n_fit = int(round(len(x) * (1 - HELD_OUT)))
     part = _Batch(system, params, x[:n_fit], dt, integrator, substeps)
     if n_fit < part.nc + 2 * part.p:
-        return None
-    theta = part.gauss_newton(centre, x[None, :n_fit], CENTRE_ITERATIONS // 2)
-    if not np.all(np.isfinite(theta)):
-        return None
+        return None, None
+    paths = x[None] if replicas is None or not len(replicas) else np.concatenate([x[None], replicas])
+    theta = part.gauss_newton(np.repeat(centre, len(paths), axis=0), paths[:, :n_fit], CENTRE_ITERATIONS // 2)
     whole = _Batch(system, params, x, dt, integrator, substeps)
-    miss = (whole.roll(theta)[0] - x)[n_fit:] * whole.weight
-    follow = (whole.roll(centre)[0] - x)[n_fit:] * whole.weight
-    den = float(np.sqrt(np.mean(follow ** 2)))
-    num = float(np.sqrt(np.mean(miss ** 2)))
-    return num / den if den > 0 and math.isfinite(num) else None
+    fitted = whole.roll(centre)[0]
+    miss = (whole.roll(theta) - paths)[:, n_fit:] * whole.weight
+    follow = (fitted[None] - paths)[:, n_fit:] * whole.weight
+    num = np.sqrt(np.mean(miss.reshape(len(paths), -1) ** 2, axis=1))
+    den = np.sqrt(np.mean(follow.reshape(len(paths), -1) ** 2, axis=1))
+    ok = np.all(np.isfinite(theta), axis=1) & np.isfinite(num) & (den > 0)
+    ratio = np.where(ok, num / np.where(den > 0, den, 1.0), np.nan)
+    null = ratio[1:][np.isfinite(ratio[1:])]
+    return (float(ratio[0]) if ok[0] else None), (float(null.max()) if len(null) >= len(paths[1:]) // 2 and len(null)
+                                                  else None)
 
 
 def combine(value: float, boot: Bootstrap | None, name: str, *, rate_std: float = 0.0, relative: float = 0.0,
