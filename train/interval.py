@@ -358,14 +358,16 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
               iterations: int = ITERATIONS, seed: int = 0, integrator: str = "rk4", substeps: int = 1,
               refit_iterations: int = REFIT_ITERATIONS, level: float = LEVEL,
               learned: bool = False, moves: list[np.ndarray] | None = None,
-              pieces: Sequence[int] | None = None) -> Bootstrap | None:
+              pieces: Sequence[int] | None = None, scatter: Mapping[str, float] | None = None) -> Bootstrap | None:
     """The moving-block bootstrap of the path x (T, k) about one trajectory of the equation
     fitted from `values` (see the module docstring). learned: x is a learned latent, whose
     bends are measured too (bends). moves: changes of the path (T, k), each one standard deviation
     of the measurement's geometry along an independent direction (an angle's pivot: angle.pivot_moves);
     the refits of the path so changed give each constant's share (geometry). None where the path
     cannot be fitted as one trajectory or too few refits succeed. pieces: x is several trajectories
-    one after another, these many frames each, with the constants shared (train/pieces.py)."""
+    one after another, these many frames each, with the constants shared (train/pieces.py);
+    scatter: per constant, how much farther the pieces alone scatter than their errors say
+    (train/joint.py), by which its residual share is widened."""
     began = time.perf_counter()
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     if not np.all(np.isfinite(x)):
@@ -408,6 +410,7 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
     names, m = batch.names, batch.m
     rho = correlation(resid / rel)
     spread = np.std(draws[:, :m], axis=0, ddof=1) * block_bias(rho, block) * leverage(len(x), batch.p, rho)
+    spread = spread * np.array([float((scatter or {}).get(n, 1.0)) for n in names])
     # the same path read with a longer dt: the constants that make the stretched-time rollout
     # match it, i.e. the constants' sensitivity to the frame rate (a pure power of time or not)
     timing = {n: float((centre[0, i] - stretched[0, i]) / math.log1p(TIME_STEP)) for i, n in enumerate(names)}
@@ -528,7 +531,7 @@ def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
         if frames and not pieces and x.shape[1] == 1 else []
     boot = bootstrap(system, params, x, result.dt, best.final, seed=seed, learned=learned, moves=moves,
                      integrator=str(settings.get("integrator", "rk4")), substeps=int(settings.get("substeps", 1)),
-                     pieces=pieces)
+                     pieces=pieces, scatter=recorded.get("scatter") if pieces else None)
     out: dict[str, Interval] = {}
     own = set(result.meta.get("own_units", ()))
     # an angle's pivot moved by its uncertainty carries its scale too: the scale share is for what has no moves

@@ -41,7 +41,7 @@ GAP = 1           # ... leaving out this many at the frame: the impact falls bet
 KINK = 4.0        # ... and no smooth motion runs through the frames around it: a quartic across both
 #                   sides misses them by this many times the noise (a swing's turning point, read
 #                   from coarse frames, has sides whose parabolas disagree, but a quartic follows it),
-KINK_SHARP = (1.5, 1.5)  # or by this many times the noise and this many times what a parabola each
+KINK_SHARP = (1.2, 1.5)  # or by this many times the noise and this many times what a parabola each
 #                   side misses them by (a fast bounce read from few frames: a quartic rounds its
 #                   corner to within KINK noise, the two parabolas follow it; a swing's turn is the
 #                   other way round, its sides' parabolas miss it 4 times more than the quartic)
