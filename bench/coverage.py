@@ -3,7 +3,8 @@
 Every clip is generated with seeded random constants, noise, resolution and length, written to
 an mp4 and fitted as a user would (fitode.pipeline.run_job, every default, the scene's shipped
 equation file; bench/realistic.py's fit_video for the realistic scenes, calibrated with the true
-state at two frames where the constant depends on the latent's units). The cases:
+state at two frames where the constant depends on the latent's units, none within 3 frames of a
+bounce). The cases:
 
 | case            | generator                                   | varied                                   |
 | --------------- | ------------------------------------------- | ---------------------------------------- |

@@ -387,7 +387,17 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
                            "relative_std": math.hypot(_relative_std(name, maps, rel_a, powers, measured),
                                                       reading.get(name, 0.0))}
     best_after = {n: mapped_best.get(n, fitted.values[n] if fitted is not None else best[n]) for n in system.learnable}
-    rollout = _rollout(system, params, x, result.dt, best_after, settings)
+    # the run's own fitted trajectory (its stretch, each of its pieces, nothing outside them), mapped
+    # as its path is: a rollout from the clip's first frames ran a held pendulum's swing 0.2 rad
+    # off its data in track.csv, and a dropped ball's through the floor
+    fitted_path = np.asarray(result.rollout, dtype=float) if result.rollout is not None else None
+    if fitted_path is not None and fitted_path.shape == latent.shape:
+        rollout = fitted_path.copy()
+        for s, m in maps.items():
+            col = result.states.index(s)
+            rollout[:, col] = m.a * fitted_path[:, col] + m.b
+    else:
+        rollout = _rollout(system, params, x, result.dt, best_after, settings)
     loss = fitted.misfit ** 2 if fitted is not None else math.nan
     return Calibration(list(points), maps, constants, x, rollout, loss, time_offset, notes)
 

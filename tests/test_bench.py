@@ -126,6 +126,24 @@ def test_calibration_points_pick_the_extremes_among_kept_frames():
         assert round(p.time * 60) % 3 == 0
 
 
+def test_calibration_points_keep_away_from_a_bounce():
+    from fitode.calibrate import parse_calibration
+    from fitode.synth import scene
+
+    v = scene("bouncing_ball", 9.8, size=(36, 64), seed=2, bounces=2)
+
+    class Clip:
+        fps = 60.0
+        frame_indices = np.arange(len(v.latent))
+
+    pts = parse_calibration(realistic.calibration_points(Clip, v, "y"), ["y"])
+    bounces = [round(t * 60) for t in v.meta["physical"]["bounce_s"]]
+    assert len(pts) == 2 and bounces
+    for p in pts:  # the lowest point is at a bounce, where the frame does not show the true height
+        assert min(abs(round(p.time * 60) - b) for b in bounces) > 2
+    assert min(p.value for p in pts) < 0.2 * max(p.value for p in pts)  # still near the floor
+
+
 def test_needs_calibration_follows_the_analysis():
     from fitode.eqfile import resolve
 

@@ -271,3 +271,19 @@ def test_a_slow_reading_error_at_the_points_widens_a_constant_the_map_offset_mov
     off = abs(c["after"] / k - 1)
     assert 0.004 < c["relative_std"] < 0.05
     assert off < 2.5 * c["relative_std"]
+
+
+def test_the_calibrated_trajectory_is_the_runs_own_fitted_stretch():
+    """A swing released after a hold: the run's trajectory covers its stretch only; calibrated, it
+    is the same trajectory mapped, not a rollout from the held first frames."""
+    system = parse("h' = -k*sqrt(h)")
+    k, a = 0.05, 4.0
+    t = np.arange(150) * 0.15
+    h = np.where(t < 3.0, 1.0, (1.0 - k * np.maximum(t - 3.0, 0.0) / 2) ** 2)  # held until 3 s
+    res = fake_result(system, t, h / a, {"k": k / math.sqrt(a)})
+    res.rollout[:20] = np.nan  # the stretch the run fitted starts at the release
+    pts = parse_calibration(f"h(0)={h[0]}; h({t[-1]})={h[-1]}", ["h"])
+    cal = calibrate_result(res, system, {"k": ParamSpec(init=0.1, min=0.0, unit="m^0.5/s")}, pts,
+                           analysis(k="dependent"))
+    assert np.all(np.isnan(cal.rollout[:20, 0]))
+    np.testing.assert_allclose(cal.rollout[20:, 0], h[20:], atol=1e-9)

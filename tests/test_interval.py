@@ -110,6 +110,20 @@ def test_the_verdict_hears_the_held_out_quarter():
     assert _judged(None).verdict == "ambiguous"
 
 
+def test_the_held_out_quarter_is_judged_against_what_its_resampled_residuals_reach():
+    # residuals that hang together move a short fit's prediction by several times themselves: the
+    # bootstrap's own paths, where the equation holds, say how far
+    assert _judged({"held_out": 4.0, "held_out_null": 5.0}).verdict == "trusted"
+    assert _judged({"held_out": 7.0, "held_out_null": 5.0}).verdict == "ambiguous"
+    rng = np.random.default_rng(3)
+    hung = iv.bootstrap(OSC, {}, _oscillation(4.0, 0.1) + _ar1(rng, T, 0.97, 0.02), DT, {"w2": 4.0, "c": 0.1},
+                        iterations=16)
+    white = iv.bootstrap(OSC, {}, _oscillation(4.0, 0.1) + _ar1(rng, T, 0.0, 0.02), DT, {"w2": 4.0, "c": 0.1},
+                         iterations=16)
+    assert hung.held_out_null > 1.5 and 1.0 <= white.held_out_null < 1.3
+    assert hung.held_out <= hung.held_out_null and white.held_out < 1.3
+
+
 def test_a_calibration_carries_the_latents_own_reading_at_its_points():
     # a noisy latent: the scale's uncertainty grows with the scatter at the points, with no
     # uncertainty typed into the points

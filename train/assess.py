@@ -15,7 +15,9 @@ judged with the whole run in view, each rule with one threshold:
 - an interrupted run is ambiguous: its estimates come from unfinished training;
 - the interval (fitode.train.interval, made before the assessment): where none could be made, or
   where the equation fitted without the clip's last quarter misses it by more than HELD_OUT_MAX
-  times the residuals there, the equation does not explain the clip as well as the interval
+  times the residuals there and more than it does on every path of the bootstrap (the one
+  trajectory with the residuals resampled: residuals that hang together move a short fit's
+  prediction by several times themselves where the equation holds), the equation does not explain the clip as well as the interval
   assumes: a doubt the interval cannot carry, so the estimate is ambiguous;
 - precision: TRUSTED promises the number within PROMISE of the truth, 99 times in 100, so a
   constant whose 99% interval (the 95% one widened by Z99 / Z95) reaches further than PROMISE
@@ -114,11 +116,13 @@ def _interval_findings(result) -> list[Finding]:
         return [Finding("ambiguous", "no interval could be made: the path cannot be fitted as one trajectory of "
                         "the equation over the clip")]
     out = []
-    held = boot.get("held_out")
-    if held is not None and held > HELD_OUT_MAX:
+    held, null = boot.get("held_out"), boot.get("held_out_null")
+    # (beyond what the same residuals, resampled about the one trajectory, reach where the equation holds)
+    if held is not None and held > max(HELD_OUT_MAX, null or 0.0):
         out.append(Finding("ambiguous", f"the equation fitted without the clip's last quarter misses it by {held:.3g} "
-                           "times the residuals of the whole clip's fit there: one set of constants does not "
-                           "predict the clip"))
+                           "times the residuals of the whole clip's fit there"
+                           + (f" (its residuals resampled reach {null:.3g})" if null else "")
+                           + ": one set of constants does not predict the clip"))
     return out
 
 

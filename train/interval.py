@@ -83,6 +83,7 @@ CURVE_POWER = 2.4
 BLOCK_TIMES = 3  # blocks three autocorrelation times long: what is left is block_bias's
 DAMPINGS = (1e-9, 1e-5, 1e-2, 1.0)  # Levenberg-Marquardt dampings tried at once, relative to the diagonal
 HELD_OUT = 0.25  # the last quarter of the path, predicted from a fit of the rest
+HELD_OUT_REPLICAS = 16  # ... and of as many of the bootstrap's paths, where the equation holds by construction
 MIN_KEPT = 0.6  # fewer refits than this fraction succeeded: no interval from the residuals
 RATE_CONTAINER_STD = 3e-4  # the container's nominal rate: 59.985 stated against 60.000 stamped (bob clip)
 RATE_GIVEN_STD = 0.0  # --fps: the user states the rate
@@ -124,6 +125,7 @@ class Bootstrap:
     misfit: float  # the one trajectory's RMS residual over each state's spread
     residual_rms: list[float]  # per state, in the path's units
     held_out: float | None = None  # the held-out prediction's miss over the residuals there (_held_out)
+    held_out_null: float | None = None  # ... the largest of it over HELD_OUT_REPLICAS resampled paths
     bend: dict[str, float] = field(default_factory=dict)  # the constants' RMS change under BEND-sized bends
     scaling: dict[str, float] = field(default_factory=dict)  # d constant / d log(the path's scale)
     geometry: dict[str, float] = field(default_factory=dict)  # the constants' std from the measurement's geometry (moves)
@@ -133,7 +135,7 @@ class Bootstrap:
                 "iterations": self.iterations, "kept": self.kept, "t_quantile": self.quantile,
                 "wall_s": self.wall_s, "trajectory": dict(self.values), "std": dict(self.std),
                 "dlog_dt": dict(self.timing), "misfit": self.misfit, "residual_rms": list(self.residual_rms),
-                "held_out": self.held_out, "bend": dict(self.bend), "dlog_scale": dict(self.scaling),
+                "held_out": self.held_out, "held_out_null": self.held_out_null, "bend": dict(self.bend), "dlog_scale": dict(self.scaling),
                 "geometry": dict(self.geometry)}
 
 
@@ -214,6 +216,22 @@ class _Batch:
         self.m = len(self.names)
         self.p = self.m + len(self.lengths) * self.nc * self.k
         self.weight = 1.0 / np.maximum(x.std(axis=0), 1e-24)  # every state counts equally, as fit_trajectory's
+        self.state_weight = self.weight
+
+    def weigh_pieces(self, resid: np.ndarray) -> np.ndarray:
+        """Weigh each piece by its own noise, from the residuals (T, k) of a fit: a flight read
+        near the bumper, or a bounce far from the camera, is measured less well than another, and
+        pooled with it would both widen the interval and pull the constants its way. Returns each
+        frame's residual spread relative to all pieces' (T, k; ones for one piece), by which the
+        weight is divided; a piece's spread counts the starting frames its own fit took up."""
+        rel = np.ones_like(resid)
+        if len(self.lengths) > 1:
+            pooled = np.sqrt(np.mean(resid ** 2, axis=0))
+            for f, n in zip(self.firsts, self.lengths):
+                own = np.sqrt(np.mean(resid[f:f + n] ** 2, axis=0) * n / max(n - self.nc, 1))
+                rel[f:f + n] = np.maximum(own, 1e-3 * pooled) / np.maximum(pooled, 1e-300)
+        self.weight = self.state_weight / rel
+        return rel
 
     def starts(self, x: np.ndarray) -> np.ndarray:
         """The starting frames of every piece of x (T, k), flat, as theta carries them."""
@@ -238,7 +256,7 @@ class _Batch:
         state's spread for the starting frames."""
         h = np.empty_like(theta)
         h[:, : self.m] = 1e-6 * np.maximum(np.abs(theta[:, : self.m]), 1e-6)
-        h[:, self.m:] = np.tile(1e-6 / self.weight, self.nc * len(self.lengths))[None, :]
+        h[:, self.m:] = np.tile(1e-6 / self.state_weight, self.nc * len(self.lengths))[None, :]
         return h
 
     def cost(self, theta: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -340,14 +358,16 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
               iterations: int = ITERATIONS, seed: int = 0, integrator: str = "rk4", substeps: int = 1,
               refit_iterations: int = REFIT_ITERATIONS, level: float = LEVEL,
               learned: bool = False, moves: list[np.ndarray] | None = None,
-              pieces: Sequence[int] | None = None) -> Bootstrap | None:
+              pieces: Sequence[int] | None = None, scatter: Mapping[str, float] | None = None) -> Bootstrap | None:
     """The moving-block bootstrap of the path x (T, k) about one trajectory of the equation
     fitted from `values` (see the module docstring). learned: x is a learned latent, whose
     bends are measured too (bends). moves: changes of the path (T, k), each one standard deviation
     of the measurement's geometry along an independent direction (an angle's pivot: angle.pivot_moves);
     the refits of the path so changed give each constant's share (geometry). None where the path
     cannot be fitted as one trajectory or too few refits succeed. pieces: x is several trajectories
-    one after another, these many frames each, with the constants shared (train/pieces.py)."""
+    one after another, these many frames each, with the constants shared (train/pieces.py);
+    scatter: per constant, how much farther the pieces alone scatter than their errors say
+    (train/joint.py), by which its residual share is widened."""
     began = time.perf_counter()
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     if not np.all(np.isfinite(x)):
@@ -362,26 +382,35 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
             centre = batch.gauss_newton(theta0, x[None], CENTRE_ITERATIONS)
             if not np.all(np.isfinite(centre)):
                 return None
+            if len(batch.lengths) > 1:  # each piece weighed by its own noise, and resampled at it
+                rel = batch.weigh_pieces(x - batch.roll(centre)[0])
+                centre = batch.gauss_newton(centre, x[None], CENTRE_ITERATIONS)
+                if not np.all(np.isfinite(centre)):
+                    return None
+            else:
+                rel = np.ones_like(x)
             fitted = batch.roll(centre)[0]
             resid = x - fitted
-            block = block_length(resid)
+            block = block_length(resid / rel)
             rng = np.random.default_rng(seed)
-            targets = np.stack([fitted + resample_blocks(resid, block, rng) for _ in range(iterations)])
+            targets = np.stack([fitted + resample_blocks(resid / rel, block, rng) * rel for _ in range(iterations)])
             draws = batch.chord(centre, targets, refit_iterations)
             draws = draws[np.all(np.isfinite(draws), axis=1)]
             if len(draws) < max(2, MIN_KEPT * iterations):
                 return None
             stretched = batch.gauss_newton(centre, batch.roll(centre, dt * (1 + TIME_STEP)), refit_iterations)
             scaled = batch.chord(centre, fitted[None] * (1 + SCALE_STEP), refit_iterations)
-            held_out = _held_out(system, params, x, dt, centre, integrator, substeps) \
-                if len(batch.lengths) == 1 else None
+            held_out, held_null = _held_out(system, params, x, dt, centre, integrator, substeps,
+                                            targets[:HELD_OUT_REPLICAS]) \
+                if len(batch.lengths) == 1 else (None, None)
             bend = bends(batch, centre, fitted, refit_iterations) if learned else {}
             moved = batch.chord(centre, fitted[None] + np.stack(moves), refit_iterations) if moves else None
     except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError, FitodeError):
         return None  # (FitodeError: a refit ran a constant off to no number, on a path of noise)
     names, m = batch.names, batch.m
-    rho = correlation(resid)
+    rho = correlation(resid / rel)
     spread = np.std(draws[:, :m], axis=0, ddof=1) * block_bias(rho, block) * leverage(len(x), batch.p, rho)
+    spread = spread * np.array([float((scatter or {}).get(n, 1.0)) for n in names])
     # the same path read with a longer dt: the constants that make the stretched-time rollout
     # match it, i.e. the constants' sensitivity to the frame rate (a pure power of time or not)
     timing = {n: float((centre[0, i] - stretched[0, i]) / math.log1p(TIME_STEP)) for i, n in enumerate(names)}
@@ -393,9 +422,9 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
                      std={n: float(s) for n, s in zip(names, spread)}, timing=timing, block=block,
                      iterations=iterations, kept=len(draws), quantile=t_quantile(level, len(draws) - 1),
                      wall_s=time.perf_counter() - began,
-                     misfit=float(np.sqrt(np.mean((resid * batch.weight) ** 2))),
+                     misfit=float(np.sqrt(np.mean((resid * batch.state_weight) ** 2))),
                      residual_rms=[float(v) for v in np.sqrt(np.mean(resid ** 2, axis=0))],
-                     held_out=held_out, bend=bend, scaling=scaling, geometry=geometry)
+                     held_out=held_out, held_out_null=held_null, bend=bend, scaling=scaling, geometry=geometry)
 
 
 def bends(batch: _Batch, centre: np.ndarray, fitted: np.ndarray, iterations: int) -> dict[str, float]:
@@ -416,24 +445,33 @@ def bends(batch: _Batch, centre: np.ndarray, fitted: np.ndarray, iterations: int
 
 
 def _held_out(system, params: Mapping, x: np.ndarray, dt: float, centre: np.ndarray, integrator: str,
-              substeps: int) -> float | None:
+              substeps: int, replicas: np.ndarray | None = None) -> tuple[float | None, float | None]:
     """How much worse the equation predicts the last HELD_OUT of the path, fitted without it,
     than the one trajectory fitted to all of it follows it there: the RMS of the prediction's
     miss over the RMS of the one trajectory's residuals on the same frames (about 1 where the
-    equation explains the clip; None where the rest cannot be fitted)."""
+    equation explains the clip and its residuals are white; None where the rest cannot be fitted);
+    and the largest such ratio over `replicas` (N, T, k): the one trajectory with its residuals
+    resampled in blocks, which the equation explains by construction. Residuals that hang together
+    over many frames (a tracker's slow error, 4 times the frame-to-frame noise on a released swing)
+    move a short fit's prediction by several times themselves: that is the size the ratio reaches
+    without any fault of the equation (None without replicas)."""
     n_fit = int(round(len(x) * (1 - HELD_OUT)))
     part = _Batch(system, params, x[:n_fit], dt, integrator, substeps)
     if n_fit < part.nc + 2 * part.p:
-        return None
-    theta = part.gauss_newton(centre, x[None, :n_fit], CENTRE_ITERATIONS // 2)
-    if not np.all(np.isfinite(theta)):
-        return None
+        return None, None
+    paths = x[None] if replicas is None or not len(replicas) else np.concatenate([x[None], replicas])
+    theta = part.gauss_newton(np.repeat(centre, len(paths), axis=0), paths[:, :n_fit], CENTRE_ITERATIONS // 2)
     whole = _Batch(system, params, x, dt, integrator, substeps)
-    miss = (whole.roll(theta)[0] - x)[n_fit:] * whole.weight
-    follow = (whole.roll(centre)[0] - x)[n_fit:] * whole.weight
-    den = float(np.sqrt(np.mean(follow ** 2)))
-    num = float(np.sqrt(np.mean(miss ** 2)))
-    return num / den if den > 0 and math.isfinite(num) else None
+    fitted = whole.roll(centre)[0]
+    miss = (whole.roll(theta) - paths)[:, n_fit:] * whole.weight
+    follow = (fitted[None] - paths)[:, n_fit:] * whole.weight
+    num = np.sqrt(np.mean(miss.reshape(len(paths), -1) ** 2, axis=1))
+    den = np.sqrt(np.mean(follow.reshape(len(paths), -1) ** 2, axis=1))
+    ok = np.all(np.isfinite(theta), axis=1) & np.isfinite(num) & (den > 0)
+    ratio = np.where(ok, num / np.where(den > 0, den, 1.0), np.nan)
+    null = ratio[1:][np.isfinite(ratio[1:])]
+    return (float(ratio[0]) if ok[0] else None), (float(null.max()) if len(null) >= len(paths[1:]) // 2 and len(null)
+                                                  else None)
 
 
 def combine(value: float, boot: Bootstrap | None, name: str, *, rate_std: float = 0.0, relative: float = 0.0,
@@ -497,7 +535,7 @@ def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
         if frames and not pieces and x.shape[1] == 1 else []
     boot = bootstrap(system, params, x, result.dt, best.final, seed=seed, learned=learned, moves=moves,
                      integrator=str(settings.get("integrator", "rk4")), substeps=int(settings.get("substeps", 1)),
-                     pieces=pieces)
+                     pieces=pieces, scatter=recorded.get("scatter") if pieces else None)
     out: dict[str, Interval] = {}
     own = set(result.meta.get("own_units", ()))
     # an angle's pivot moved by its uncertainty carries its scale too: the scale share is for what has no moves

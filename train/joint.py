@@ -9,6 +9,13 @@ widened for residuals that hang together from frame to frame, as fit_trajectory'
 The pieces are then checked against each other: each is fitted alone from the shared constants;
 one whose constant lies farther from the shared value than SIGMAS of their combined errors and
 APART of the value is a finding (a bounce that also knocks the track, a hand still touching).
+Where the others are three or more, a piece is measured against them instead: against their
+own weighted mean, with the errors widened by how far they scatter about it beyond their errors
+(the Birge ratio, sqrt(chi^2 / dof), at least 1). A tracker whose centroid errs by half a pixel
+depending on where the thing is moves every piece's value by more than its residuals say (a
+generated cart's flights lie 1 to 3 of their errors from the shared value, its short last flight
+near the bumper 5): that is no change of the motion, and the interval is widened by the same
+ratio over all pieces (scatter); one piece far from all the others still stands out of them.
 """
 from __future__ import annotations
 
@@ -23,6 +30,7 @@ from .interval import CENTRE_ITERATIONS, _Batch
 
 SIGMAS = 3.0
 APART = 0.02
+OTHERS = 3  # a piece is measured against the others' scatter where there are this many
 
 
 @dataclass
@@ -34,9 +42,11 @@ class JointFit:
     misfit: float                   # RMS residual over all pieces, in units of each state's spread
     fitted: np.ndarray              # (T, k) the pieces' trajectories, one after another
     alone: list[dict[str, list[float]] | None]  # per piece: name -> [value, error], None where it is too short
+    scatter: dict[str, float] | None = None  # per constant: the pieces' scatter over their errors (>= 1)
 
     def to_dict(self) -> dict:
-        return {"values": self.values, "errors": self.errors, "misfit": self.misfit, "alone": self.alone}
+        return {"values": self.values, "errors": self.errors, "misfit": self.misfit, "alone": self.alone,
+                "scatter": self.scatter}
 
 
 def fit_pieces(system, params: Mapping, x: np.ndarray, dt: float, spans: Sequence[tuple[int, int]],
@@ -55,7 +65,18 @@ def fit_pieces(system, params: Mapping, x: np.ndarray, dt: float, spans: Sequenc
         v, e, _, _ = _fit(system, params, part, dt, [len(part)], values, integrator, substeps) \
             if len(parts) > 1 else (values, errors, None, None)
         alone.append(None if v is None else {n: [v[n], e[n]] for n in v})
-    return JointFit(values, errors, misfit, fitted, alone)
+    own = {n: [p[n] for p in alone if p is not None] for n in values}
+    return JointFit(values, errors, misfit, fitted, alone,
+                    {n: _pooled(own[n])[2] if len(own[n]) >= OTHERS else 1.0 for n in values})
+
+
+def _pooled(pairs) -> tuple[float, float, float]:
+    """The weighted mean of [value, error] pairs, its error, and their Birge ratio (at least 1)."""
+    v = np.array([p[0] for p in pairs], dtype=float)
+    w = 1.0 / np.maximum(np.array([p[1] for p in pairs], dtype=float), 1e-300) ** 2
+    mean = float(np.sum(w * v) / np.sum(w))
+    chi2 = float(np.sum(w * (v - mean) ** 2))
+    return mean, float(1.0 / math.sqrt(np.sum(w))), max(1.0, math.sqrt(chi2 / max(len(v) - 1, 1)))
 
 
 def disagreement(fit: JointFit, spans: Sequence[tuple[int, int]], dt: float, offset: int = 0) -> list[Finding]:
@@ -64,12 +85,14 @@ def disagreement(fit: JointFit, spans: Sequence[tuple[int, int]], dt: float, off
     out = []
     for name, value in fit.values.items():
         apart = []
-        for (a, b), own in zip(spans, fit.alone):
+        for k, ((a, b), own) in enumerate(zip(spans, fit.alone)):
             if own is None or len(spans) < 2:
                 continue
             v, e = own[name]
-            gap = abs(v - value)
-            if gap > APART * max(abs(value), 1e-12) and gap > SIGMAS * math.hypot(e, fit.errors[name]):
+            others = [p[name] for j, p in enumerate(fit.alone) if j != k and p is not None]
+            centre, error, wide = _pooled(others) if len(others) >= OTHERS else (value, fit.errors[name], 1.0)
+            gap = abs(v - centre)
+            if gap > APART * max(abs(value), 1e-12) and gap > SIGMAS * wide * math.hypot(e, error):
                 apart.append(f"{v:.4g} +- {e:.2g} on {(a + offset) * dt:.2f}-{(b + offset) * dt:.2f} s")
         if apart:
             out.append(Finding("ambiguous", f"the pieces do not share one {name}: {value:.4g} +- "
@@ -86,6 +109,9 @@ def _fit(system, params, x: np.ndarray, dt: float, lengths: list[int], start: Ma
             return None, None, None, None
         theta0 = np.concatenate([[float(start[n]) for n in batch.names], batch.starts(x)])[None]
         theta = batch.gauss_newton(theta0, x[None], 4 * CENTRE_ITERATIONS)
+        if len(lengths) > 1 and np.all(np.isfinite(theta)):
+            batch.weigh_pieces(x - batch.roll(theta)[0])  # each piece at its own noise
+            theta = batch.gauss_newton(theta, x[None], 4 * CENTRE_ITERATIONS)
         if not np.all(np.isfinite(theta)):
             return None, None, None, None
         rolled, jac = batch.jacobian(theta)
@@ -98,7 +124,7 @@ def _fit(system, params, x: np.ndarray, dt: float, lengths: list[int], start: Ma
     cov = np.linalg.pinv(jac[0] @ jac[0].T, rcond=1e-13) * float(r @ r) / dof * (1 + lag) / (1 - lag)
     values = {n: float(theta[0, i]) for i, n in enumerate(batch.names)}
     errors = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(batch.names)}
-    misfit = float(np.sqrt(np.mean(r ** 2)))
+    misfit = float(np.sqrt(np.mean(((rolled[0] - x) * batch.state_weight) ** 2)))
     if not all(math.isfinite(v) for v in [*values.values(), *errors.values(), misfit]):
         return None, None, None, None
     return values, errors, misfit, rolled[0]

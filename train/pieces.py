@@ -28,7 +28,7 @@ from typing import Callable
 
 import numpy as np
 
-from .stretch import MIN_SEED, TOL, at_rest, find_stretch, noise_level
+from .stretch import BREAK, MIN_SEED, TOL, at_rest, find_stretch, noise_level
 
 JUMP = 6.0        # an impact: the velocities either side of a frame differ by this many times their noise
 MOVING = 2.0      # ... and turn round, at least this many times that noise fast either side
@@ -40,7 +40,15 @@ SIDE_FRAMES = (5, 12)
 GAP = 1           # ... leaving out this many at the frame: the impact falls between two frames
 KINK = 4.0        # ... and no smooth motion runs through the frames around it: a quartic across both
 #                   sides misses them by this many times the noise (a swing's turning point, read
-#                   from coarse frames, has sides whose parabolas disagree, but a quartic follows it)
+#                   from coarse frames, has sides whose parabolas disagree, but a quartic follows it),
+KINK_SHARP = (1.2, 1.5)  # or by this many times the noise and this many times what a parabola each
+#                   side misses them by (a fast bounce read from few frames: a quartic rounds its
+#                   corner to within KINK noise, the two parabolas follow it; a swing's turn is the
+#                   other way round, its sides' parabolas miss it 4 times more than the quartic)
+SPLIT_GAIN = 4.0  # a piece one trajectory misses by BREAK times the noise is split at its strongest turn of
+#                   the velocity (impacts' threshold halved, no smooth-motion guard: a slow last bounce)
+#                   where one trajectory each side misses it by this many times less
+SPLITS = 3        # ... at most this many times over
 JOIN = 2.0     # two neighbours are one trajectory where it misses their union by at most this many times
 #                their own misfits (or the noise)
 
@@ -116,24 +124,7 @@ def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tu
     frames, with the GAP frames either side, is the impact."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     SIDE = int(np.clip(round(SIDE_S / dt), *SIDE_FRAMES))
-    if hi - lo < 2 * (SIDE + GAP) + 1:
-        return []
-    t = np.arange(SIDE, dtype=np.float64)
-    # the velocity at the frame from the SIDE frames after it (starting GAP frames on), and before it
-    after = _slope_weights(t + GAP)
-    before = -_slope_weights(t + GAP)[::-1]
-    sigma = noise * math.sqrt(float(after @ after + before @ before))
-    score = np.zeros(len(x))
-    for i in range(lo + SIDE + GAP, hi - SIDE - GAP + 1):
-        va = after @ x[i + GAP:i + GAP + SIDE]
-        vb = before @ x[i - GAP - SIDE + 1:i - GAP + 1]
-        jump = np.abs(va - vb)
-        # a bounce turns the motion round, fast either side: a release (from rest) or a swing's
-        # turning point (as slow on both sides) does not
-        ok = (jump > JUMP * sigma) & (va * vb < 0) & (np.minimum(np.abs(va), np.abs(vb)) > MOVING * sigma)
-        if ok.any() and _smooth_misfit(x[i - GAP - SIDE + 1:i + GAP + SIDE]) <= KINK * noise:
-            continue  # one smooth motion turns round here: no impact
-        score[i] = float((jump * ok).max()) / sigma
+    score = _jumps(x, noise, lo, hi, SIDE, JUMP, guard=True)
     out: list[tuple[int, int]] = []
     for i in np.flatnonzero(score > 0):
         if score[i] < score[max(i - SIDE, 0):i + SIDE + 1].max():
@@ -142,6 +133,48 @@ def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tu
             continue
         out.append((int(i - GAP), int(i + GAP + 1)))
     return out
+
+
+def _jumps(x: np.ndarray, noise: float, lo: int, hi: int, SIDE: int, jump: float, guard: bool) -> np.ndarray:
+    """Each frame's velocity jump in units of its noise where it is an impact (see impacts: over
+    `jump`, turning round, fast either side and, with guard, at a corner), else 0."""
+    score = np.zeros(len(x))
+    if hi - lo < 2 * (SIDE + GAP) + 1:
+        return score
+    t = np.arange(SIDE, dtype=np.float64)
+    # the velocity at the frame from the SIDE frames after it (starting GAP frames on), and before it
+    after = _slope_weights(t + GAP)
+    before = -_slope_weights(t + GAP)[::-1]
+    sigma = noise * math.sqrt(float(after @ after + before @ before))
+    for i in range(lo + SIDE + GAP, hi - SIDE - GAP + 1):
+        va = after @ x[i + GAP:i + GAP + SIDE]
+        vb = before @ x[i - GAP - SIDE + 1:i - GAP + 1]
+        gap = np.abs(va - vb)
+        # a bounce turns the motion round, fast either side: a release (from rest) or a swing's
+        # turning point (as slow on both sides) does not
+        ok = (gap > jump * sigma) & (va * vb < 0) & (np.minimum(np.abs(va), np.abs(vb)) > MOVING * sigma)
+        if not ok.any() or guard and not _kinked(x[i - GAP - SIDE + 1:i + GAP + SIDE], SIDE, noise):
+            continue  # no jump, or one smooth motion turns round here: no impact
+        score[i] = float((gap * ok).max()) / sigma
+    return score
+
+
+def _kinked(y: np.ndarray, side: int, noise: float) -> bool:
+    """Whether the frames y (n, k) around a frame turn round at a corner, not smoothly: a quartic
+    across them misses them by KINK times the noise, or by KINK_SHARP's times the noise and what a
+    parabola fitted to each side's `side` frames misses those by."""
+    smooth = _smooth_misfit(y)
+    if smooth > KINK * noise:
+        return True
+    sides = np.concatenate([_parabola_residual(y[:side]), _parabola_residual(y[-side:])])
+    return smooth > KINK_SHARP[0] * noise and smooth > KINK_SHARP[1] * float(np.sqrt(np.mean(np.square(sides))))
+
+
+def _parabola_residual(y: np.ndarray) -> np.ndarray:
+    t = np.arange(len(y), dtype=np.float64)
+    a = np.stack([np.ones_like(t), t, t * t], axis=1)
+    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+    return a @ coef - y
 
 
 def _smooth_misfit(y: np.ndarray) -> float:
@@ -184,11 +217,10 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
     bounds = [0] + [v for c in cuts for v in c] + [T]
     spans: list[tuple[int, int]] = []
     for a, b in zip(bounds[::2], bounds[1::2]):
-        if b - a < min_len:
-            continue
-        part = find_stretch(x[a:b], dt, lambda i, j, a=a: fit(a + i, a + j), min_len=min_len, search=True)
-        if part.end - part.start >= min_len and _rms(fit(a + part.start, a + part.end)) is not None:
-            spans.append((int(a + part.start), int(a + part.end)))
+        found = _parts(x, a, b, dt, fit, noise, min_len, SPLITS)
+        cuts.extend((e, s) for (_, e), (s, _) in zip(found, found[1:]))  # a split is a bounce too
+        spans.extend(found)
+    cuts.sort()
     spans = _joined(spans, fit, noise)
     if len(spans) > 1:
         # a hand that holds the thing, or a thing come to rest, follows a trajectory of its own that
@@ -219,6 +251,33 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
         if last < T:
             events.append(Event(last, "stop" if rest[last:].mean() > 0.5 else "lost"))
     return Pieces(spans, events, noise)
+
+
+def _parts(x: np.ndarray, a: int, b: int, dt: float, fit, noise: float, min_len: int,
+           splits: int) -> list[tuple[int, int]]:
+    """The stretch of frames [a, b) that one trajectory explains, found by find_stretch's search;
+    where one trajectory still misses it by BREAK times the noise (a bounce too slow for impacts:
+    a cart's last, short flights turn round gently), [a, b) split at its strongest turn of the
+    velocity, if one trajectory each side misses by SPLIT_GAIN times less, and each side searched."""
+    if b - a < min_len:
+        return []
+    part = find_stretch(x[a:b], dt, lambda i, j: fit(a + i, a + j), min_len=min_len, search=True)
+    s, e = a + part.start, a + part.end
+    whole = _rms(fit(s, e)) if e - s >= min_len else None
+    if whole is None:
+        return []
+    if splits > 0 and whole > BREAK * noise:
+        side = int(np.clip(round(SIDE_S / dt), *SIDE_FRAMES))
+        score = _jumps(x, noise, a, b, side, JUMP / 2, guard=False)
+        i = int(np.argmax(score))
+        if score[i] > 0:
+            c0, c1 = i - GAP, i + GAP + 1
+            sides = [_rms(fit(a, c0)) if c0 - a >= min_len else 0.0,
+                     _rms(fit(c1, b)) if b - c1 >= min_len else 0.0]
+            if all(v is not None and v * SPLIT_GAIN <= whole for v in sides):
+                return (_parts(x, a, c0, dt, fit, noise, min_len, splits - 1)
+                        + _parts(x, c1, b, dt, fit, noise, min_len, splits - 1))
+    return [(s, e)]
 
 
 def release(x: np.ndarray, lo: int, a: int, b: int, dt: float) -> int | None:
@@ -252,9 +311,11 @@ def _joined(spans: list[tuple[int, int]], fit, noise: float) -> list[tuple[int, 
     for span in spans:
         if out:
             a, b = out[-1]
-            own = max(_rms(fit(a, b)) or math.inf, _rms(fit(*span)) or math.inf, noise)
+            mine = [_rms(fit(a, b)) or math.inf, _rms(fit(*span)) or math.inf]
             union = _rms(fit(a, span[1]))
-            if union is not None and union <= JOIN * own and union <= TOL * max(own, noise):
+            # (the better of the two sets the bar: one that one trajectory misses badly, a slow bounce
+            # inside it, made any union look as good)
+            if union is not None and union <= JOIN * max(*mine, noise) and union <= TOL * max(min(mine), noise):
                 out[-1] = (a, span[1])
                 continue
         out.append(span)

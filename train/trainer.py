@@ -383,7 +383,8 @@ def _joint(fit, pieces, plan: FitPlan, meta: dict) -> None:
     meta["trajectory"].update(
         measured=np.concatenate([fit.states[fit.best, a:b] for a, b in pieces.spans]).tolist(),
         fitted=joint.fitted.tolist(), pieces=[b - a for a, b in pieces.spans], misfit=joint.misfit,
-        values=joint.values, errors=joint.errors, frames=[pieces.spans[0][0], pieces.spans[-1][1]])
+        values=joint.values, errors=joint.errors, frames=[pieces.spans[0][0], pieces.spans[-1][1]],
+        scatter=joint.scatter)
 
 
 def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int], dict | None, Pieces | None]:
