@@ -98,7 +98,7 @@ def _plots_for_result(folder: Path, result, report, plots_done: list[str], t0: f
     warnings = [
         _try_plot(plots.plot_latent, folder / "latent.png", result.time + t0, latent, rollout, result.train_frames,
                   result.states, window=int(result.settings.get("window", 0)) or None, ylabels=ylabels,
-                  angles=plots.angle_states(result), plots_done=plots_done),
+                  angles=plots.angle_states(result), measured=bool(result.meta.get("direct")), plots_done=plots_done),
         _try_plot(plots.plot_params, folder / "params.png", runs, estimates, units=units, **shown,
                   plots_done=plots_done),
         _try_plot(plots.plot_loss, folder / "loss.png", runs, plots_done=plots_done),

@@ -31,16 +31,18 @@ def _colours(n: int) -> list:
 
 def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rollout: np.ndarray,
                 train_frames: int, states: Sequence[str], *, window: int | None = None,
-                ylabels: Sequence[str] | None = None, angles: Sequence[str] = ()) -> Path:
+                ylabels: Sequence[str] | None = None, angles: Sequence[str] = (), measured: bool = False) -> Path:
     """latent.png: latent_figure saved at path."""
     return _save(latent_figure(time, latent, rollout, train_frames, states, window=window, ylabels=ylabels,
-                               angles=angles), path)
+                               angles=angles, measured=measured), path)
 
 
 def latent_figure(time: Sequence[float], latent: np.ndarray, rollout: np.ndarray, train_frames: int,
                   states: Sequence[str], *, window: int | None = None, ylabels: Sequence[str] | None = None,
-                  angles: Sequence[str] = ()):
+                  angles: Sequence[str] = (), measured: bool = False):
     """Encoded latent (dots) and the physics rollout from the first frames (line), per state: a Figure.
+    measured: the dots are a measured path fitted directly by one trajectory (train/direct.py), so
+    no training window applies and the line is that trajectory.
 
     The rollout starts from the first frames only and runs over the whole clip, so everything
     after the first window is a prediction; frames beyond train_frames were not trained on and are
@@ -58,15 +60,16 @@ def latent_figure(time: Sequence[float], latent: np.ndarray, rollout: np.ndarray
     fig, axes = plt.subplots(d, 1, figsize=(9, 2.6 * d + 0.6), sharex=True, squeeze=False)
     t_train = t[train_frames] if train_frames < len(t) else None
     for i, ax in enumerate(axes[:, 0]):
-        ax.plot(t, z[:, i], ".", ms=3.5, color="tab:blue", label="encoded frames")
+        ax.plot(t, z[:, i], ".", ms=3.5, color="tab:blue", label="measured frames" if measured else "encoded frames")
         finite = np.isfinite(r[:, i])
-        ax.plot(t[finite], r[finite, i], "-", lw=1.4, color="tab:orange", label="physics rollout from the first frames")
+        ax.plot(t[finite], r[finite, i], "-", lw=1.4, color="tab:orange",
+                label="the equation's trajectory fitted to them" if measured else "physics rollout from the first frames")
         lo, hi = _limits(z[:, i], r[finite, i])
         ax.set_ylim(lo, hi)  # a diverging rollout must not squash the data
         if t_train is not None:
             ax.axvspan(t_train, t[-1], color="0.85", zorder=0, label="extrapolated (not trained on)")
             ax.axvline(t_train, color="0.4", lw=0.8, ls="--")
-        if window and window < len(t):
+        if window and window < len(t) and not measured:
             ax.axvline(t[window - 1], color="tab:green", lw=0.8, ls=":",
                        label=f"end of the first {window}-frame window: the rollout after it is a prediction")
         ax.set_ylabel(ylabels[i] if ylabels else latent_label(states[i]), fontsize=9)
@@ -79,7 +82,8 @@ def latent_figure(time: Sequence[float], latent: np.ndarray, rollout: np.ndarray
     # above the axes: inside, a legend hides the very points it explains
     axes[0, 0].legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, fontsize=8, frameon=False)
     axes[-1, 0].set_xlabel("time (s)")
-    fig.suptitle("encoded latent and physics rollout", fontsize=11)
+    fig.suptitle("the measured path and the equation's trajectory" if measured else "encoded latent and physics rollout",
+                 fontsize=11)
     return fig
 
 

@@ -119,7 +119,7 @@ class Result(FitResult):
             ylabels = self.calibration["ylabels"]
         fig = plots.latent_figure(self.time + _t0(self), latent, rollout, self.train_frames, self.states,
                                   window=int(self.settings.get("window", 0)) or None, ylabels=ylabels,
-                                  angles=plots.angle_states(self))
+                                  angles=plots.angle_states(self), measured=bool(self.meta.get("direct")))
         if path is not None:
             fig.tight_layout()
             fig.savefig(path, dpi=plots.DPI)

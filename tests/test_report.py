@@ -133,3 +133,15 @@ def test_plots_are_valid_pngs(tmp_path):
     plots.plot_latent(tmp_path / "latent2.png", res.time, two, two, 40, ["u", "v"], ylabels=["u [m]", "v [m]"])
     for name in ("latent", "params", "loss", "frames", "latent2"):
         assert_png(tmp_path / f"{name}.png")
+
+
+def test_a_measured_path_is_drawn_as_measured_with_its_fitted_trajectory_and_no_window():
+    t = np.arange(40) * 0.1
+    path = np.sin(t)[:, None]
+    encoded = plots.latent_figure(t, path, path, 40, ["x"], window=10)
+    measured = plots.latent_figure(t, path, path, 40, ["x"], window=10, measured=True)
+    labels = lambda fig: [h.get_label() for h in fig.axes[0].get_lines()]  # noqa: E731
+    assert "encoded frames" in labels(encoded) and any("window" in s for s in labels(encoded))
+    assert labels(measured)[:2] == ["measured frames", "the equation's trajectory fitted to them"]
+    assert not any("window" in s for s in labels(measured))
+    assert measured._suptitle.get_text() == "the measured path and the equation's trajectory"
