@@ -107,7 +107,7 @@ def compare(requests: Sequence, frames, dt: float, *, track=None, geometry=None,
     cands = [CandidateFit(equation=getattr(r, "equation", None) or r.system.text, request=r) for r in requests]
     first = cands[0]
     first.plan = first_plan or api.plan(first.request, frames, dt, track=track, geometry=geometry)
-    if not first.plan.observation.measured:
+    if not first.plan.observation.may_measure:
         raise FitodeError(FREE_LATENT)
     options = dict(time_offset=time_offset, callback=callback, progress=progress, rate_std=rate_std)
     say(f"candidate 1 of {len(cands)}: {first.equation}")

@@ -228,3 +228,13 @@ def test_an_equation_file_lists_alternatives(tmp_path):
     path.write_text('name = "bad"\nequation = "%s"\nalternatives = "x"\n' % PENDULUM)
     with pytest.raises(FitodeError, match="alternatives"):
         load_equation_file(path)
+
+
+@pytest.mark.slow
+def test_a_lamp_that_dims_as_one_pattern_is_compared_on_its_light():
+    # a lamp's light read linearly is a measured path (fitted directly), so its candidates are
+    # compared on one path; before, the brightness observation was refused as a free latent
+    from fitode.examples.make_example import decay_values, render_glow
+    frames = render_glow(decay_values(80, 20.0, 0.8), size=24).astype(np.float32)
+    comparison = _compared(frames, 0.05, ["I' = -gamma*I", "I' = -gamma*I^2"], light="linear")
+    assert all(c["verdict"] != "failed" for c in comparison["candidates"]), comparison

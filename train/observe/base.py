@@ -174,6 +174,12 @@ class ObservationModel:
                 "perspective": False, "direct": self.measured, "periods": free}[check]
 
     @property
+    def may_measure(self) -> bool:
+        """Whether the frames may give a measured path (known before prepare: a light read
+        linearly is one where a single pattern changes)."""
+        return self.measured
+
+    @property
     def can_bend(self) -> bool:
         """Whether the latent can bend where the frames do not hold it, which no residual shows
         (the interval then takes the bends' share: train/interval.py): a learned latent can."""

@@ -68,6 +68,10 @@ class BrightnessObservation(ObservationModel):
         return True
 
     @property
+    def may_measure(self) -> bool:
+        return True
+
+    @property
     def reads_lengths(self) -> bool:
         return False  # light has no length: no pixels or metres to say
 
