@@ -160,7 +160,7 @@ def test_every_candidate_is_scored_on_the_widest_stretch_any_of_them_explains(mo
                                                          "end_s": b / 30, "reason": "r", "source": "found"}},
                       checks={})
 
-    observation = SimpleNamespace(measured=True, name="angle")
+    observation = SimpleNamespace(measured=True, may_measure=True, name="angle")
     monkeypatch.setattr(api, "plan", lambda req, *a, **k: SimpleNamespace(observation=observation))
     monkeypatch.setattr(api, "execute", execute)
     requests = [SimpleNamespace(equation=eq, system=parse(eq), observe=None, observe_source=None)

@@ -358,3 +358,14 @@ def test_restarts_that_read_one_measured_path_are_not_compared_in_their_own_unit
     assert _own_units(system, analysis, SizeObservation()) == {"k"}
     assert _own_units(system, analysis, ObservationModel()) == set()  # a free encoder's restarts are compared
     assert _own_units(parse("x'' = -w*x"), analyse(parse("x'' = -w*x")), PositionObservation()) == set()
+
+
+def test_a_lamps_slow_tail_is_fitted_not_cut_as_a_stop(tmp_path):
+    # a 16x16 glow decaying at 0.4/s for 4 s: its tail flattens for a frame at 1.3 s, which the
+    # stretch search of a place takes for a stop (gamma 0.303 from the first 1.3 s, trusted)
+    from fitode.examples.make_example import decay_values, render_glow, write_mp4
+    video = write_mp4(tmp_path / "lamp.mp4", render_glow(decay_values(40, 10.0, 0.4), size=16, seed=0), 10.0)
+    res = fitode.fit(video, eq="I' = -gamma*I", restarts=2, stride=1, light="linear", progress=False)
+    stretch = res.meta["stretch"]
+    assert (stretch["start_frame"], stretch["end_frame"]) == (0, 40) and "no stop" in stretch["reason"], stretch
+    assert abs(res.values["gamma"] / 0.4 - 1) < 0.03, res.values

@@ -393,6 +393,8 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int]
     n = plan.n_train
     if not plan.config.stretch or n < 3 * MIN_SEED:
         return (0, n), None, None
+    if not plan.observation.applies("stretch"):
+        return (0, n), _stretch_record((0, n), plan, "the whole clip", plan.observation.no_stretch), None
     system, params, config = plan.system, plan.params, plan.config
     warm = dict(restart_inits(system, params, 1, config.seed, plan.init)[0])
     with _threads(config.threads):

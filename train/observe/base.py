@@ -30,7 +30,7 @@ from .catalog import MODELS
 from .subspace import signal_subspace
 
 # the checks whose use depends on what the latent is (ObservationModel.applies)
-CHECKS = ("score", "quiet", "perspective", "trajectory", "rivals", "direct", "periods")
+CHECKS = ("score", "quiet", "perspective", "trajectory", "rivals", "direct", "periods", "stretch")
 
 
 @dataclass(frozen=True)
@@ -112,6 +112,7 @@ class ObservationModel:
     measured = False
     # the latent is the state in its own physical units (radians for an angle): no gauge, no prior
     physical_units = False
+    no_stretch = "no stretch is looked for"  # the stretch line's reason where applies("stretch") is False
     object: int | None = None  # the moving object it reads, k-th from the left (position@2); None: the strongest
 
     def __init__(self, subspace: bool = True):
@@ -166,12 +167,13 @@ class ObservationModel:
         periods: the latent must repeat with the frames (a free latent that repeats at another
         period is folded); a measured latent reads one part of what the frames show (the height
         of a can that also sways sideways at its own period), so its fit is held to the latent's
-        own period instead."""
+        own period instead. stretch: a measured path is searched for the stretch (the pieces) one
+        trajectory explains: a place can be held, bounce, come to rest (no_stretch says why not)."""
         if check not in CHECKS:
             raise ValueError(f"unknown check {check!r}; one of {', '.join(CHECKS)}")
         free = not self.measured
         return {"score": free, "quiet": free, "rivals": free, "trajectory": self.measured,
-                "perspective": False, "direct": self.measured, "periods": free}[check]
+                "perspective": False, "direct": self.measured, "periods": free, "stretch": self.measured}[check]
 
     @property
     def may_measure(self) -> bool:
