@@ -37,6 +37,8 @@ STEPS = 8         # Gauss-Newton steps of the sub-pixel refinement
 SEED_FRAMES = 40  # frames the seed is chosen among
 PEAKS = 1         # the correlation's peaks refined where the best is not a good match
 MARGIN = 2        # pixels of background kept around the object's mask in the template
+OFFSET = 0.25     # the largest change of the object's brightness (beyond a gain) a match allows, in its contrasts
+RING_QUANTILE = 0.25  # the share of the ring around the object that must still show what surrounded it
 
 
 @dataclass
@@ -111,7 +113,10 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
             place, se, corr, patch, turned = found
             # a match away from where the object should be is taken only where it matches well
             # (the object taken up again after it was hidden); a poor one is something else
-            if corr < GOOD and (guess is None or float(np.linalg.norm(place - guess)) > 0.25 * size + 2.0):
+            # while the object is followed, a jump away from its predicted place is something else
+            # however well it matches (the can's spring and a leg behind it)
+            far = guess is None or float(np.linalg.norm(place - guess)) > 0.25 * size + 2.0
+            if far and (corr < GOOD or not lost):
                 lost += 1
                 continue
             xy[t], sigma[t], score[t] = place, se, corr
@@ -324,7 +329,11 @@ def _find(frame, template, weight, ref, guess, reach, angle=0.0):
     corr = np.nan_to_num(corr, nan=-1.0, posinf=-1.0, neginf=-1.0)
     # the correlation's best peak is refined and scored; where that is poor, the next best peaks
     # too (a dark leg correlates with a can's edges better than the can half hidden behind it)
-    best = None
+    # the predicted place is refined too: where something passes behind the object, the
+    # correlation's peak may lie on that instead, and the object where it should be still scores best
+    best = _refine(frame, template, weight, ref, np.asarray(guess, dtype=np.float64), angle) if guess is not None else None
+    if best is not None and best[2] >= GOOD:
+        return best
     spread = max(3, min(th, tw) // 2)
     for _ in range(PEAKS):
         j = int(np.argmax(corr))
@@ -430,12 +439,17 @@ def _score(patch, template, weight) -> float:
     outer = ring & (cv2.dilate(inside.astype(np.uint8), np.ones((3, 3), np.uint8)) == 0)
     contrast = abs(float(np.median(template[inside])) - float(np.median(template[ring]))) if ring.any() else 0.0
     contrast = max(contrast, float(template[weight > 0].std()), 1.0)
+    # ... and an offset of at most OFFSET of the object's contrast: a dark leg behind a plain gray
+    # can matches its inside once shifted by their whole difference in brightness
+    offset = float(np.clip(offset, -OFFSET * contrast, OFFSET * contrast))
     # each part on its own: a flat patch matches a plain object's inside, and only its ring says
     # that it is not the object
+    # the core by its median, the ring by its lower quartile: what passes behind the object covers
+    # a part of its ring (a leg one side of the can), a patch that is not the object misses all of it
     worst = 0.0
-    for part in (core, outer):
+    for part, q in ((core, 0.5), (outer, RING_QUANTILE)):
         if part.any():
-            worst = max(worst, float(np.median(np.abs(patch[part] - (gain * template[part] + offset)))))
+            worst = max(worst, float(np.quantile(np.abs(patch[part] - (gain * template[part] + offset)), q)))
     return float(1.0 - worst / contrast)
 
 
