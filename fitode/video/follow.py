@@ -178,7 +178,9 @@ def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
         if found is None:
             continue
         seen = np.isfinite(found.xy[:, 0])
-        if seen.sum() < 3 or float(np.ptp(found.xy[seen], axis=0).max()) < 2.0:
+        # an object that travels less than its own size is not the one that moves (a hand that
+        # has let the ball go)
+        if seen.sum() < 3 or float(np.ptp(found.xy[seen], axis=0).max()) < max(2.0, math.sqrt(found.area)):
             continue
         # in view longest (to a tenth of the clip: legs walk out of the view, a can on its spring
         # does not), then keeping its look best
@@ -512,7 +514,8 @@ def _score(patch, template, weight) -> float:
 
 SWITCH_AREA = 2.0  # a switch: the path's object changes its area by this factor from one frame to the next ...
 SWITCHES = 3          # the change detector's path is set aside where it switches at least this many times
-SEEN = 0.5         # ... and the object tracker places the object in at least this share of the frames
+SEEN = 0.9         # ... and the object tracker places the object in at least this share of the frames (the
+                   # position observation reads no more than a tenth of them from their neighbours)
 
 
 def switches(path: np.ndarray, area: np.ndarray) -> int:
