@@ -219,7 +219,7 @@ def track_object(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
 
     paths, areas = measure_paths(frames, MAX_OBJECTS, per_frame=True)
     found = follow_best(frames, paths)
-    chosen, how = choose(frames, paths, areas, found) if found is not None else (paths[0], "no object")
+    chosen, how, _ = choose(frames, paths, areas, found) if found is not None else (paths[0], "no object", None)
     return (np.full((len(frames), 2), np.nan) if found is None else found.xy), chosen, how
 
 

@@ -75,7 +75,8 @@ def test_a_path_that_goes_from_one_moving_thing_to_another_switches():
 def test_the_reader_keeps_the_change_detector_where_its_path_does_not_switch():
     frames, truth = _clip()
     paths, areas = measure_paths(frames, MAX_OBJECTS, per_frame=True)
-    path, how = choose(frames, paths, areas)
+    path, how, found = choose(frames, paths, areas)
+    assert found is None
     assert how.startswith("the change from the static scene (its path switches between moving things 0 times")
     assert np.array_equal(path, paths[0], equal_nan=True)
 
@@ -89,7 +90,8 @@ def test_the_reader_follows_the_object_where_the_change_detectors_path_switches(
     for a in (8, 22, 36, 50):
         jumpy[a:a + 4] = (20.0, 100.0)
         big[a:a + 4] = 20 * areas[a]
-    path, how = choose(frames, np.stack([jumpy, paths[0]]), big)
+    path, how, found = choose(frames, np.stack([jumpy, paths[0]]), big)
+    assert found is not None and path is found.xy
     assert how.startswith("the object followed by its appearance") and "switches between moving things 8 times" in how
     err = np.linalg.norm(path - truth, axis=1)
     assert float(np.sqrt(np.mean(err ** 2))) < 0.3

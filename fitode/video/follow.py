@@ -532,23 +532,25 @@ def switches(path: np.ndarray, area: np.ndarray) -> int:
     return int((grows & (step > np.sqrt(np.minimum(a[1:], a[:-1])))).sum())
 
 
-def choose(stack: np.ndarray, paths: np.ndarray, area: np.ndarray, found: Followed | None = None) -> tuple[np.ndarray, str]:
+def choose(stack: np.ndarray, paths: np.ndarray, area: np.ndarray,
+           found: Followed | None = None) -> tuple[np.ndarray, str, Followed | None]:
     """The track the reader takes, and one line on why: the change detector's strongest path
     (paths: (n, T, 2), fitode.video.track.measure_paths; area: (T,) its region's pixels per frame)
     where it does not switch from one moving thing to another (fewer than SWITCHES switches: the
     detector is at the limit on a clean scene, the real pendulums); else the object tracker's (follow_best, seeded by the detector's paths), hidden
     frames NaN, where it places the object in at least SEEN of the frames: something else changes
     more than the object for a while (legs walking behind a can) and the detector's path goes
-    from one to the other. found: the object tracker's result where the caller has it."""
+    from one to the other. found: the object tracker's result where the caller has it. Returns the
+    path (T, 2), the line, and the object tracker's result where its path was taken (else None)."""
     change = "the change from the static scene"
     n = switches(paths[0], area)
     if n < SWITCHES:
-        return paths[0], f"{change} (its path switches between moving things {n} time{'s' if n != 1 else ''}: under {SWITCHES})"
+        return paths[0], f"{change} (its path switches between moving things {n} time{'s' if n != 1 else ''}: under {SWITCHES})", None
     found = follow_best(stack, paths) if found is None else found
     if found is None:
-        return paths[0], f"{change} (its path switches between moving things {n} times, but the object tracker found nothing to follow)"
+        return paths[0], f"{change} (its path switches between moving things {n} times, but the object tracker found nothing to follow)", None
     seen = float(np.isfinite(found.xy[:, 0]).mean())
     if seen < SEEN:
         return paths[0], (f"{change} (its path switches between moving things {n} times, but the object tracker placed the object in only "
-                          f"{100 * seen:.0f}% of the frames)")
-    return found.xy, f"{found.note}, not {change}: its path switches between moving things {n} times"
+                          f"{100 * seen:.0f}% of the frames)"), None
+    return found.xy, f"{found.note}, not {change}: its path switches between moving things {n} times", found

@@ -85,15 +85,17 @@ class TrackRecorder:
         self.frames = []
         paths, areas = measure_paths(stack, MAX_OBJECTS, per_frame=True)
         area = float(np.nanmean(areas)) if np.isfinite(areas).any() else 0.0
-        xy, how = choose(stack, paths, areas)
+        xy, how, found = choose(stack, paths, areas)
+        if found is not None:  # the object's own size, not that of the change the detector followed
+            area = found.area
         k = self.factor
 
         def source(p: np.ndarray) -> np.ndarray:
             return np.stack([self.crop[0] + (p[..., 0] + 0.5) * k - 0.5, self.crop[1] + (p[..., 1] + 0.5) * k - 0.5], axis=-1)
 
         where = "at the source's resolution" if k == 1 else f"on frames shrunk {k}x to stay within memory"
-        note = f"{how}, {area * k * k:.0f} source pixels on average, measured {where}"
-        return Track(source(xy), float(area * k * k), k, note, objects(source(paths)))
+        note = f"{how}, {area * k * k:.0f} source pixels{'' if found is not None else ' on average'}, measured {where}"
+        return Track(source(xy), float(area * k * k), k, note, objects(source(paths)), followed=found is not None)
 
 
 def objects(paths: np.ndarray) -> tuple[np.ndarray, ...]:
