@@ -84,14 +84,20 @@ def test_the_reader_keeps_the_change_detector_where_its_path_does_not_switch():
 def test_the_reader_follows_the_object_where_the_change_detectors_path_switches():
     frames, truth = _clip()
     paths, areas = measure_paths(frames, MAX_OBJECTS, per_frame=True)
-    # the strongest change taken, four times, by something large far from the ball (legs that
-    # pass), the ball's own path second
-    jumpy, big = paths[0].copy(), areas.copy()
+    # the strongest change something large far from the ball (legs behind it) but in four short
+    # spells, when it is the ball; the ball's own path second
+    jumpy, big = np.tile([20.0, 100.0], (len(frames), 1)), 20 * areas
     for a in (8, 22, 36, 50):
-        jumpy[a:a + 4] = (20.0, 100.0)
-        big[a:a + 4] = 20 * areas[a]
+        jumpy[a:a + 4], big[a:a + 4] = paths[0][a:a + 4], areas[a:a + 4]
     path, how, found = choose(frames, np.stack([jumpy, paths[0]]), big)
     assert found is not None and path is found.xy
     assert how.startswith("the object followed by its appearance") and "switches between moving things 8 times" in how
     err = np.linalg.norm(path - truth, axis=1)
     assert float(np.sqrt(np.mean(err ** 2))) < 0.3
+    # where the detector's path switches but follows the object most of the time (a small object
+    # whose region flickers), both follow the same thing and the detector's is kept
+    flicker = paths[0].copy()
+    for a in (8, 22, 36, 50):
+        flicker[a:a + 4] = (20.0, 100.0)
+    path, how, found = choose(frames, np.stack([flicker, paths[0]]), np.where(flicker[:, 0] == 20.0, 20 * areas, areas))
+    assert found is None and "follows the same object" in how and path is not None and np.isnan(path).sum() == 0

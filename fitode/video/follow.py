@@ -514,6 +514,7 @@ def _score(patch, template, weight) -> float:
 
 SWITCH_AREA = 2.0  # a switch: the path's object changes its area by this factor from one frame to the next ...
 SWITCHES = 3          # the change detector's path is set aside where it switches at least this many times
+SAME = 0.5         # ... and is not taken where it stays within the object's size of the detector's path in this share
 SEEN = 0.9         # ... and the object tracker places the object in at least this share of the frames (the
                    # position observation reads no more than a tenth of them from their neighbours)
 
@@ -538,7 +539,9 @@ def choose(stack: np.ndarray, paths: np.ndarray, area: np.ndarray,
     (paths: (n, T, 2), fitode.video.track.measure_paths; area: (T,) its region's pixels per frame)
     where it does not switch from one moving thing to another (fewer than SWITCHES switches: the
     detector is at the limit on a clean scene, the real pendulums); else the object tracker's (follow_best, seeded by the detector's paths), hidden
-    frames NaN, where it places the object in at least SEEN of the frames: something else changes
+    frames NaN, where it places the object in at least SEEN of the frames and follows another thing
+    than the detector's path (within the object's size in under SAME of them: a small object whose
+    region flickers switches too, and both follow it): something else changes
     more than the object for a while (legs walking behind a can) and the detector's path goes
     from one to the other. found: the object tracker's result where the caller has it. Returns the
     path (T, 2), the line, and the object tracker's result where its path was taken (else None)."""
@@ -553,4 +556,10 @@ def choose(stack: np.ndarray, paths: np.ndarray, area: np.ndarray,
     if seen < SEEN:
         return paths[0], (f"{change} (its path switches between moving things {n} times, but the object tracker placed the object in only "
                           f"{100 * seen:.0f}% of the frames)"), None
+    both = np.isfinite(paths[0][:, 0]) & np.isfinite(found.xy[:, 0])
+    d = paths[0][both] - found.xy[both]
+    same = float((np.linalg.norm(d - np.median(d, axis=0), axis=1) <= math.sqrt(found.area)).mean()) if both.any() else 0.0
+    if same >= SAME:
+        return paths[0], (f"{change} (its path switches between moving things {n} times, but the object tracker "
+                          f"follows the same object: within its size in {100 * same:.0f}% of the frames)"), None
     return found.xy, f"{found.note}, not {change}: its path switches between moving things {n} times", found
