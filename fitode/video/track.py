@@ -94,7 +94,8 @@ class TrackRecorder:
             return np.stack([self.crop[0] + (p[..., 0] + 0.5) * k - 0.5, self.crop[1] + (p[..., 1] + 0.5) * k - 0.5], axis=-1)
 
         where = "at the source's resolution" if k == 1 else f"on frames shrunk {k}x to stay within memory"
-        note = f"{how}, {area * k * k:.0f} source pixels{'' if found is not None else ' on average'}, measured {where}"
+        size = "" if found is not None else f", {area * k * k:.0f} source pixels on average"  # a template's size is in `how`
+        note = f"{how}{size}, measured {where}"
         return Track(source(xy), float(area * k * k), k, note, objects(source(paths)), followed=found is not None)
 
 
