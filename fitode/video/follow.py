@@ -8,18 +8,22 @@ opened, holes filled), and that template is then found in every frame, forwards 
 in a window around the place its last two positions predict:
 
 - cv2.matchTemplate (normalised correlation, the object's mask as weights) gives the whole-pixel
-  peak;
+  peak; the predicted place itself is refined too (something passing behind may hold the peak);
 - a few Gauss-Newton steps of the template's translation, with a gain and an offset for the
   light, weighted by the mask and robustly (Cauchy) against what crosses behind, give the
   sub-pixel place and, from the residuals and the steps' normal matrix, its standard error;
 - a frame whose best match correlates under HIDDEN is marked hidden (NaN), never filled with
-  whatever stands there; the search widens while the object is lost and covers the frame after
-  LOST frames;
+  whatever stands there (nor a fair match beside such a frame); the search widens while the
+  object is lost and covers the frame after LOST frames; a lost object is cut afresh from the
+  change where it was going, where that change has its size and its old template still finds it;
 - the template follows the object slowly (UPDATE of each well-matched frame, aligned to the
   sub-pixel place first) as it turns and its lighting changes.
 
 The place read is the template's reference point: the centre of the object's mask in the seed
 frame (each pixel weighted by how much of it the object covers).
+
+The reader (fitode.video.track.TrackRecorder) takes this track only where the change detector's
+path switches between moving things and this one follows another (choose).
 """
 from __future__ import annotations
 
