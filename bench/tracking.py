@@ -19,8 +19,8 @@ after their median offset is taken out, on the frames both follow, beside the ra
 
 Each track is read by the change detector (fitode.video.track.measure, the reader's until now), by
 the object tracker (fitode.video.follow) seeded by it, and as a reader would take it by
-fitode.video.follow.choose (the detector's where it sees one moving object or the object tracker
-agrees with it; the reader does not use it yet); the table gives the RMS error and the
+fitode.video.follow.choose (the detector's unless its path switches between moving things, as the
+reader takes it); the table gives the RMS error and the
 largest, the frames each could not place, and the constant the track leads to (a damped sine's
 w0^2 for the oscillations, the fall's g in px/s^2, Torricelli's k in px^0.5/s), fitted to the
 track as realclips.py fits its own.
@@ -217,9 +217,9 @@ def track_object(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
     from fitode.video.follow import choose, follow_best
     from fitode.video.track import MAX_OBJECTS, measure_paths
 
-    paths = measure_paths(frames, MAX_OBJECTS)[0]
+    paths, areas = measure_paths(frames, MAX_OBJECTS, per_frame=True)
     found = follow_best(frames, paths)
-    chosen, how = choose(frames, paths, found) if found is not None else (paths[0], "no object")
+    chosen, how, _ = choose(frames, paths, areas, found) if found is not None else (paths[0], "no object", None)
     return (np.full((len(frames), 2), np.nan) if found is None else found.xy), chosen, how
 
 

@@ -2,7 +2,7 @@
 import numpy as np
 
 from fitode.synth import render as R
-from fitode.video.follow import choose, follow_best
+from fitode.video.follow import choose, follow_best, switches
 from fitode.video.track import MAX_OBJECTS, measure_paths
 
 
@@ -55,15 +55,49 @@ def test_hidden_frames_are_marked_not_filled_with_what_covers_the_object():
     assert np.all(err[~covered] < 0.5)
 
 
-def test_the_choice_keeps_the_change_detector_where_it_sees_one_object_or_both_agree():
+def test_a_path_that_goes_from_one_moving_thing_to_another_switches():
+    t = np.arange(40, dtype=float)
+    path = np.stack([50 + 10 * np.sin(0.3 * t), 40 + 0 * t], axis=1)
+    area = np.full(40, 100.0)
+    assert switches(path, area) == 0  # an object that moves keeps its size
+    jumpy, big = path.copy(), area.copy()
+    for a, b in ((5, 9), (20, 24)):  # twice to a large thing far away and back
+        jumpy[a:b] = (150.0, 90.0)
+        big[a:b] = 2000.0
+    assert switches(jumpy, big) == 4
+    # a large step of the same thing (a fast ball) is no switch, nor a change of size in place
+    fast = path.copy()
+    fast[10:] += 60.0
+    assert switches(fast, area) == 0
+    assert switches(path, np.where(t < 20, 100.0, 400.0)) == 0
+
+
+def test_the_reader_keeps_the_change_detector_where_its_path_does_not_switch():
     frames, truth = _clip()
-    paths = measure_paths(frames, MAX_OBJECTS)[0]
-    path, how = choose(frames, paths)
-    assert how == "the change from the static scene"
-    assert np.array_equal(path, paths[0], equal_nan=True)
-    # with a second moving object in view the object tracker is asked, and agrees with it
-    two = np.concatenate([paths[:1], paths[:1] + np.array([0.0, 30.0])])
-    path, how = choose(frames, two, follow_best(frames, paths))
-    assert how.startswith("the change from the static scene (the object tracker agrees")
+    paths, areas = measure_paths(frames, MAX_OBJECTS, per_frame=True)
+    path, how, found = choose(frames, paths, areas)
+    assert found is None
+    assert how.startswith("the change from the static scene (its path switches between moving things 0 times")
     assert np.array_equal(path, paths[0], equal_nan=True)
 
+
+def test_the_reader_follows_the_object_where_the_change_detectors_path_switches():
+    frames, truth = _clip()
+    paths, areas = measure_paths(frames, MAX_OBJECTS, per_frame=True)
+    # the strongest change something large far from the ball (legs behind it) but in four short
+    # spells, when it is the ball; the ball's own path second
+    jumpy, big = np.tile([20.0, 100.0], (len(frames), 1)), 20 * areas
+    for a in (8, 22, 36, 50):
+        jumpy[a:a + 4], big[a:a + 4] = paths[0][a:a + 4], areas[a:a + 4]
+    path, how, found = choose(frames, np.stack([jumpy, paths[0]]), big)
+    assert found is not None and path is found.xy
+    assert how.startswith("the object followed by its appearance") and "switches between moving things 8 times" in how
+    err = np.linalg.norm(path - truth, axis=1)
+    assert float(np.sqrt(np.mean(err ** 2))) < 0.3
+    # where the detector's path switches but follows the object most of the time (a small object
+    # whose region flickers), both follow the same thing and the detector's is kept
+    flicker = paths[0].copy()
+    for a in (8, 22, 36, 50):
+        flicker[a:a + 4] = (20.0, 100.0)
+    path, how, found = choose(frames, np.stack([flicker, paths[0]]), np.where(flicker[:, 0] == 20.0, 20 * areas, areas))
+    assert found is None and "follows the same object" in how and path is not None and np.isnan(path).sum() == 0

@@ -65,6 +65,11 @@ def test_a_measured_position_carries_its_unit_in_source_pixels_or_metres():
     model.use_lengths(Lengths((2.0, 2.0), metres_per_px=0.004))
     metres = model.prepare(torch.zeros(len(t), 1, 8, 8))
     assert metres.units == ("m",) and metres.unit_scale[0] == pytest.approx(0.004 * prepared.unit_scale[0])
+    # the note says what the track is: the change's centroid, or the object followed by its look
+    assert "the centroid of what differs most from the static scene" in prepared.note
+    followed = resolve_observation("position", system, track=Track(throw, 5.0, 1, "generated", followed=True))
+    note = followed.prepare(torch.zeros(len(t), 1, 8, 8)).note
+    assert "the object followed by its appearance (5 pixels)" in note and "centroid" not in note
 
 
 def test_lengths_on_shrunk_frames_are_in_source_pixels():

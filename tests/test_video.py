@@ -274,6 +274,8 @@ def test_describe_lines(videos):
     assert any("30x20 pixels" in line and "gray" in line for line in text)
     assert any(line == "stride: 2 (given by --stride)" for line in text)
     assert any(line == "dt: 0.08 s" for line in text)
+    # the reader's choice of track, in one line
+    assert sum(line.startswith("track: the change from the static scene (its path switches") for line in text) == 1
 
 
 def test_progress_bar(videos, capsys):

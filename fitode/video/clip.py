@@ -92,6 +92,8 @@ class Clip:
         else:
             lines.append(f"fps: {self.fps:.6g} (from the container)")
         lines += [f"time: {line}" for line in self.timing]
+        if self.track is not None:
+            lines.append(f"track: {self.track.note}")
         slow = self.slow_motion_fps()
         if slow:
             lines.append(f"hint: the metadata says this clip was recorded at {slow:.6g} fps and plays at "

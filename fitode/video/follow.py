@@ -8,18 +8,22 @@ opened, holes filled), and that template is then found in every frame, forwards 
 in a window around the place its last two positions predict:
 
 - cv2.matchTemplate (normalised correlation, the object's mask as weights) gives the whole-pixel
-  peak;
+  peak; the predicted place itself is refined too (something passing behind may hold the peak);
 - a few Gauss-Newton steps of the template's translation, with a gain and an offset for the
   light, weighted by the mask and robustly (Cauchy) against what crosses behind, give the
   sub-pixel place and, from the residuals and the steps' normal matrix, its standard error;
 - a frame whose best match correlates under HIDDEN is marked hidden (NaN), never filled with
-  whatever stands there; the search widens while the object is lost and covers the frame after
-  LOST frames;
+  whatever stands there (nor a fair match beside such a frame); the search widens while the
+  object is lost and covers the frame after LOST frames; a lost object is cut afresh from the
+  change where it was going, where that change has its size and its old template still finds it;
 - the template follows the object slowly (UPDATE of each well-matched frame, aligned to the
   sub-pixel place first) as it turns and its lighting changes.
 
 The place read is the template's reference point: the centre of the object's mask in the seed
 frame (each pixel weighted by how much of it the object covers).
+
+The reader (fitode.video.track.TrackRecorder) takes this track only where the change detector's
+path switches between moving things and this one follows another (choose).
 """
 from __future__ import annotations
 
@@ -37,6 +41,8 @@ STEPS = 8         # Gauss-Newton steps of the sub-pixel refinement
 SEED_FRAMES = 40  # frames the seed is chosen among
 PEAKS = 1         # the correlation's peaks refined where the best is not a good match
 MARGIN = 2        # pixels of background kept around the object's mask in the template
+OFFSET = 0.25     # the largest change of the object's brightness (beyond a gain) a match allows, in its contrasts
+RING_QUANTILE = 0.25  # the share of the ring around the object that must still show what surrounded it
 
 
 @dataclass
@@ -80,9 +86,8 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
     score = np.full(t_all, np.nan)
     rigid = np.full(t_all, np.nan)  # the score against the seed's template, not the one that follows the object
     size = math.sqrt(area)
-    inner = weight >= 1.0
     for way in (1, -1):
-        tmpl = template.copy()
+        tmpl, wgt, rf = template.copy(), weight, ref
         last: list[np.ndarray] = []
         lost, angle = 0, 0.0
         ts = range(t0, t_all) if way == 1 else range(t0 - 1, -1, -1)
@@ -99,28 +104,56 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
             else:
                 velocity = last[-1] - last[-2] if len(last) > 1 else np.zeros(2)
                 guess = last[-1] + velocity * (lost + 1)
-                reach = max(3.0 * float(np.linalg.norm(velocity)), 0.5 * size, 6.0) * (1 + lost)
+                reach = max(3.0 * float(np.linalg.norm(velocity)), 0.25 * size, 4.0) * (1 + lost)
                 if lost >= LOST:
                     guess = None
-            found = _find(frame, tmpl, weight, ref, guess, reach, angle)
+            found = _find(frame, tmpl, wgt, rf, guess, reach, angle)
             if found is not None:
                 score[t] = found[2]
+            if (found is None or found[2] < GOOD) and lost and guess is not None:
+                # lost a while (legs passed behind, the label went round meanwhile): the object
+                # cut afresh from the change where it was going, if that change has its size
+                again = _cut(stack[t], background, noise, guess)
+                if (again is not None and 0.8 * area <= again[4] <= 1.25 * area
+                        and float(np.linalg.norm(again[5] - guess)) <= reach):
+                    new_ref = _aligned(again[1], weight, ref)
+                    place = again[5] - again[2] + new_ref
+                    # and it is the object where the template it had still finds it there (a
+                    # region of the can's size may be a leg's piece beside its top)
+                    if _score(_sample(frame, place, angle, rf, tmpl.shape), tmpl, wgt) >= HIDDEN:
+                        tmpl, wgt, rf = again[0], again[1], new_ref
+                        found = _refine(frame, tmpl, wgt, rf, place, 0.0)
+                        if found is not None:
+                            score[t] = found[2]
             if found is None or found[2] < HIDDEN:
                 lost += 1
                 continue
             place, se, corr, patch, turned = found
             # a match away from where the object should be is taken only where it matches well
             # (the object taken up again after it was hidden); a poor one is something else
-            if corr < GOOD and (guess is None or float(np.linalg.norm(place - guess)) > 0.25 * size + 2.0):
+            # while the object is followed, a jump away from its predicted place is something else
+            # however well it matches (the can's spring and a leg behind it)
+            far = guess is None or float(np.linalg.norm(place - guess)) > 0.25 * size + 2.0
+            if far and (corr < GOOD or not lost):
                 lost += 1
                 continue
             xy[t], sigma[t], score[t] = place, se, corr
-            rigid[t] = _score(patch, template, weight)
-            last = (last + [place])[-2:]
+            rigid[t] = _score(patch, template, weight) if patch.shape == template.shape else corr
+            # taken up again after frames lost: its step from the place before the loss is not one frame's
+            last = (last + [place])[-2:] if not lost else [place]
             lost, angle = 0, turned
             # the object's own pixels follow its look (a label that goes round, the light); the ring
             # around it keeps the seed's: what passes behind is not learnt
-            tmpl = np.where(inner, (1 - UPDATE) * tmpl + UPDATE * patch, tmpl)
+            tmpl = np.where(wgt >= 1.0, (1 - UPDATE) * tmpl + UPDATE * patch, tmpl)
+    # a frame beside a hidden one that matches only fairly is half hidden: what covers the object
+    # there pulls its place (by pixels, on the can as a leg passes behind)
+    for _ in range(2):
+        gone = np.isnan(xy[:, 0])
+        edge = np.zeros(t_all, bool)
+        edge[1:] |= gone[:-1]
+        edge[:-1] |= gone[1:]
+        doubt = edge & ~gone & (score < GOOD)
+        xy[doubt], sigma[doubt] = np.nan, np.nan
     if np.isfinite(sigma).sum() > 1:  # the seed frame matches itself exactly: its error is like its neighbours'
         sigma[t0] = float(np.nanmedian(np.delete(sigma, t0)))
     shift = _recentre(stack, xy, t0, cut[2], template.shape, ref, noise)
@@ -133,8 +166,8 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
 
 def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
     """Of the change detector's paths (n, T, 2; the strongest first), the object followed best:
-    among those that move and whose template is found in at least half the frames (else among
-    all), the one that keeps its look best (the median score against the seed frame's template).
+    among those that move, the one in view longest (to a tenth of the frames), and of those the
+    one that keeps its look best (the median score against the seed frame's template).
     The strongest change is not always the object: legs walking behind a can on a spring change
     more; they also change their shape as they go."""
     sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), 48)).round().astype(int))
@@ -149,9 +182,13 @@ def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
         if found is None:
             continue
         seen = np.isfinite(found.xy[:, 0])
-        if seen.sum() < 3 or float(np.ptp(found.xy[seen], axis=0).max()) < 2.0:
+        # an object that travels less than its own size is not the one that moves (a hand that
+        # has let the ball go)
+        if seen.sum() < 3 or float(np.ptp(found.xy[seen], axis=0).max()) < max(2.0, math.sqrt(found.area)):
             continue
-        key = (bool(seen.mean() >= 0.5), float(np.nanmedian(found.rigid[seen])))
+        # in view longest (to a tenth of the clip: legs walk out of the view, a can on its spring
+        # does not), then keeping its look best
+        key = (round(float(seen.mean()), 1), float(np.nanmedian(found.rigid[seen])))
         if rank is None or key > rank:
             best, rank = found, key
     return best
@@ -260,6 +297,28 @@ def _cut(frame, background, noise, near, change=None):
     return template, weight, centre - np.array([x0, y0]), (x0, y0, x1, y1), area, centre
 
 
+def _aligned(new_weight, old_weight, old_ref, pad: int = 6) -> np.ndarray:
+    """The reference point in a fresh cut's pixels that the seed's template has in its own: the
+    two silhouettes (the weights) laid on each other (a parabola through the correlation's peak).
+    A fresh cut's own centre may differ by pixels from the seed's (a spring's coil kept, a shaded
+    top lost); the outline less (on the generated can: 0.6 and 2.3 pixels off still)."""
+    big = np.pad(new_weight.astype(np.float32), pad)
+    small = old_weight.astype(np.float32)
+    if big.shape[0] < small.shape[0] or big.shape[1] < small.shape[1]:
+        return np.asarray(old_ref, dtype=np.float64)
+    corr = cv2.matchTemplate(big, small, cv2.TM_CCORR_NORMED)
+    py, px = np.unravel_index(int(np.argmax(corr)), corr.shape)
+    sub = []
+    for k, (i, n) in enumerate(((px, corr.shape[1]), (py, corr.shape[0]))):
+        if 0 < i < n - 1:
+            a, b, c = (corr[py, i - 1], corr[py, i], corr[py, i + 1]) if k == 0 else (corr[i - 1, px], corr[i, px], corr[i + 1, px])
+            den = a - 2 * b + c
+            sub.append(i + (0.5 * (a - c) / den if den < 0 else 0.0))
+        else:
+            sub.append(float(i))
+    return np.array(sub) - pad + np.asarray(old_ref, dtype=np.float64)
+
+
 def _recentre(stack, xy, t0, weight, shape, ref, noise, rounds: int = 2) -> np.ndarray:
     """The shift (2,) from the template's reference point to the object's centre. The seed's cut
     is the change from the clip's median frame, and where the object covers its own median place
@@ -324,7 +383,11 @@ def _find(frame, template, weight, ref, guess, reach, angle=0.0):
     corr = np.nan_to_num(corr, nan=-1.0, posinf=-1.0, neginf=-1.0)
     # the correlation's best peak is refined and scored; where that is poor, the next best peaks
     # too (a dark leg correlates with a can's edges better than the can half hidden behind it)
-    best = None
+    # the predicted place is refined too: where something passes behind the object, the
+    # correlation's peak may lie on that instead, and the object where it should be still scores best
+    best = _refine(frame, template, weight, ref, np.asarray(guess, dtype=np.float64), angle) if guess is not None else None
+    if best is not None and best[2] >= GOOD:
+        return best
     spread = max(3, min(th, tw) // 2)
     for _ in range(PEAKS):
         j = int(np.argmax(corr))
@@ -390,7 +453,9 @@ def _refine(frame, template, weight, ref, place, angle=0.0):
             return None
         resid = p + jac @ d  # the residual after the step, to first order
         s2 = float((ww * resid ** 2).sum() / max(ww.sum() - 5, 1.0))
-        scale = math.sqrt(max(s2, 1e-6))
+        # the robust scale from the median misfit of the weighted pixels, not their RMS: a leg
+        # behind the object's edge misfits by the whole contrast and would widen an RMS scale
+        scale = max(1.4826 * float(np.median(np.abs(resid[wgt > 0]))), 1e-3)
         robust = 1.0 / (1.0 + (resid / (3.0 * scale)) ** 2)
         step = np.clip(d[:2], -1.0, 1.0)  # the linearisation holds within about a pixel
         turn = float(np.clip(d[2], -0.05, 0.05))
@@ -419,65 +484,86 @@ def _score(patch, template, weight) -> float:
     if core.sum() < 4:
         core = inside
     ring = (weight > 0) & ~inside
-    t_in, p_in = template[inside].astype(np.float64), patch[inside].astype(np.float64)
+    # the gain and the offset from the core (an edge pixel mixes in what passes behind)
+    t_in, p_in = template[core].astype(np.float64), patch[core].astype(np.float64)
     design = np.column_stack([t_in, np.ones_like(t_in)])
     (gain, offset), *_ = np.linalg.lstsq(design, p_in, rcond=None)
     # the light changes the object's look a little; a flat patch (gain 0) is not the object
-    gain = float(np.clip(gain, 0.75, 1.33))
+    gain = float(np.clip(gain, 0.8, 1.25))
     offset = float(np.median(p_in - gain * t_in))
     # the object's inner pixels and the outer ring around it: legs behind the can change a part
     # of the ring, a dark patch that is not the can changes all of it
     outer = ring & (cv2.dilate(inside.astype(np.uint8), np.ones((3, 3), np.uint8)) == 0)
     contrast = abs(float(np.median(template[inside])) - float(np.median(template[ring]))) if ring.any() else 0.0
     contrast = max(contrast, float(template[weight > 0].std()), 1.0)
+    # ... and an offset of at most OFFSET of the object's contrast: a dark leg behind a plain gray
+    # can matches its inside once shifted by their whole difference in brightness
+    offset = float(np.clip(offset, -OFFSET * contrast, OFFSET * contrast))
     # each part on its own: a flat patch matches a plain object's inside, and only its ring says
     # that it is not the object
-    worst = 0.0
-    for part in (core, outer):
-        if part.any():
-            worst = max(worst, float(np.median(np.abs(patch[part] - (gain * template[part] + offset)))))
-    return float(1.0 - worst / contrast)
+    # the core by its median, the ring by its lower quartile: what passes behind the object covers
+    # a part of its ring (a leg one side of the can), a patch that is not the object misses all of it
+    expected = gain * template + offset
+    misfit = float(np.median(np.abs(patch[core] - expected[core]))) if core.any() else 0.0
+    if outer.any():
+        # a ring pixel is the object's surroundings where it shows what surrounded it in the
+        # template, or anything that differs from the object's inside by its whole contrast: a
+        # leg wider than the can behind it covers all of its ring, and the can stands out of it
+        level = float(np.median(patch[core])) if core.any() else float(np.median(patch[inside]))
+        ring_miss = np.minimum(np.abs(patch[outer] - expected[outer]),
+                               np.maximum(contrast - np.abs(patch[outer] - level), 0.0))
+        misfit = max(misfit, float(np.quantile(ring_miss, RING_QUANTILE)))
+    return float(1.0 - misfit / contrast)
 
 
-AGREE = 0.9  # the change detector's path is kept where the object tracker agrees with it in this share of frames
-SEEN = 0.5  # ... and is not taken where it places the object in fewer than this share of the frames
-AGREE_PX = 1.0  # ... within this many pixels (or 3 of its standard errors) of their median offset
+SWITCH_AREA = 2.0  # a switch: the path's object changes its area by this factor from one frame to the next ...
+SWITCHES = 3          # the change detector's path is set aside where it switches at least this many times
+SAME = 0.5         # ... and is not taken where it stays within the object's size of the detector's path in this share
+SEEN = 0.9         # ... and the object tracker places the object in at least this share of the frames (the
+                   # position observation reads no more than a tenth of them from their neighbours)
 
 
-def choose(stack: np.ndarray, paths: np.ndarray, found=None) -> tuple[np.ndarray, str]:
-    """Which track a reader would take, and how it was made (bench/tracking.py's "choice" row; the
-    reader itself, fitode.video.track, still takes the change detector's everywhere: on the shared
-    real clips this rule took the object tracker for the bob, the drop and the bouncing ball, and
-    the drop's g went from 10.16 to 14.45). The change detector's strongest path where it
-    sees one moving object (fitode.video.track.objects: in view in at least half the frames), or
-    where the object tracker (fitode.video.follow, seeded by the detector's paths) agrees with it, up to
-    a constant offset, in AGREE of the frames both place (the detector's centroid is at the limit
-    on a clean scene: the real pendulums), or where the object tracker places the object in fewer
-    than SEEN of the frames (a tiny object, read between pixels); else the object tracker's,
-    hidden frames NaN (something else changes more than the object: legs walking behind it).
-    found: the object tracker's result (fitode.video.follow.follow_best) where the caller has it."""
-    from fitode.video.track import objects
+def switches(path: np.ndarray, area: np.ndarray) -> int:
+    """How often a path (T, 2; NaN where unseen) goes from one moving thing to another: its region's
+    area (T,) changes by SWITCH_AREA or more from one seen frame to the next while it steps farther
+    than the smaller region's size. An object that moves keeps its size from frame to frame (the
+    real pendulums: never); a path that takes legs walking behind a can for it does not."""
+    seen = np.isfinite(path[:, 0]) & np.isfinite(area)
+    p, a = path[seen], np.maximum(area[seen], 1.0)
+    if len(p) < 2:
+        return 0
+    grows = np.abs(np.diff(np.log(a))) >= math.log(SWITCH_AREA)
+    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    return int((grows & (step > np.sqrt(np.minimum(a[1:], a[:-1])))).sum())
 
+
+def choose(stack: np.ndarray, paths: np.ndarray, area: np.ndarray,
+           found: Followed | None = None) -> tuple[np.ndarray, str, Followed | None]:
+    """The track the reader takes, and one line on why: the change detector's strongest path
+    (paths: (n, T, 2), fitode.video.track.measure_paths; area: (T,) its region's pixels per frame)
+    where it does not switch from one moving thing to another (fewer than SWITCHES switches: the
+    detector is at the limit on a clean scene, the real pendulums); else the object tracker's (follow_best, seeded by the detector's paths), hidden
+    frames NaN, where it places the object in at least SEEN of the frames and follows another thing
+    than the detector's path (within the object's size in under SAME of them: a small object whose
+    region flickers switches too, and both follow it): something else changes
+    more than the object for a while (legs walking behind a can) and the detector's path goes
+    from one to the other. found: the object tracker's result where the caller has it. Returns the
+    path (T, 2), the line, and the object tracker's result where its path was taken (else None)."""
     change = "the change from the static scene"
-    if len(objects(paths)) < 2:
-        return paths[0], change  # one moving object: nothing else to take for it, and the detector is at the limit
+    n = switches(paths[0], area)
+    if n < SWITCHES:
+        return paths[0], f"{change} (its path switches between moving things {n} time{'s' if n != 1 else ''}: under {SWITCHES})", None
     found = follow_best(stack, paths) if found is None else found
     if found is None:
-        return paths[0], f"{change} (the object tracker found nothing to follow)"
+        return paths[0], f"{change} (its path switches between moving things {n} times, but the object tracker found nothing to follow)", None
     seen = float(np.isfinite(found.xy[:, 0]).mean())
     if seen < SEEN:
-        return paths[0], f"{change} (the object tracker placed the object in only {100 * seen:.0f}% of the frames)"
+        return paths[0], (f"{change} (its path switches between moving things {n} times, but the object tracker placed the object in only "
+                          f"{100 * seen:.0f}% of the frames)"), None
     both = np.isfinite(paths[0][:, 0]) & np.isfinite(found.xy[:, 0])
-    if both.sum() >= 3:
-        d = paths[0][both] - found.xy[both]
-        miss = np.linalg.norm(d - np.median(d, axis=0), axis=1)
-        agree = miss <= np.maximum(AGREE_PX, 3 * np.nan_to_num(found.sigma[both], nan=0.0))
-        share = float(agree.sum()) / max(int(np.isfinite(paths[0][:, 0]).sum()), 1)
-    else:
-        share = 0.0
-    if share >= AGREE:
-        return paths[0], (f"{change} (the object tracker agrees within {AGREE_PX:g} pixel in {100 * share:.0f}% "
-                          "of the frames)")
-    return found.xy, (f"{found.note}, seeded by the change from the static scene (which is elsewhere in "
-                      f"{100 * (1 - share):.0f}% of the frames)")
-
+    d = paths[0][both] - found.xy[both]
+    same = float((np.linalg.norm(d - np.median(d, axis=0), axis=1) <= math.sqrt(found.area)).mean()) if both.any() else 0.0
+    if same >= SAME:
+        return paths[0], (f"{change} (its path switches between moving things {n} times, but the object tracker "
+                          f"follows the same object: within its size in {100 * same:.0f}% of the frames)"), None
+    return found.xy, f"{found.note}, not {change}: its path switches between moving things {n} times", found

@@ -20,11 +20,13 @@ so; then they are shrunk by the smallest whole factor that fits, and the track s
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import cv2
 import numpy as np
 
 from fitode.train.observe.track import Track
+from fitode.video.follow import choose
 
 TRACK_BYTES = 384 * 2 ** 20
 BACKGROUND_FRAMES = 48
@@ -81,13 +83,20 @@ class TrackRecorder:
             return None
         stack = np.stack([self.frames[i] for i in index])
         self.frames = []
-        paths, area = measure_paths(stack, MAX_OBJECTS)
+        paths, areas = measure_paths(stack, MAX_OBJECTS, per_frame=True)
+        area = float(np.nanmean(areas)) if np.isfinite(areas).any() else 0.0
+        xy, how, found = choose(stack, paths, areas)
+        if found is not None:  # the object's own size, not that of the change the detector followed
+            area = found.area
         k = self.factor
-        paths = np.stack([self.crop[0] + (paths[..., 0] + 0.5) * k - 0.5, self.crop[1] + (paths[..., 1] + 0.5) * k - 0.5],
-                         axis=-1)
+
+        def source(p: np.ndarray) -> np.ndarray:
+            return np.stack([self.crop[0] + (p[..., 0] + 0.5) * k - 0.5, self.crop[1] + (p[..., 1] + 0.5) * k - 0.5], axis=-1)
+
         where = "at the source's resolution" if k == 1 else f"on frames shrunk {k}x to stay within memory"
-        note = f"the change from the static scene, {area * k * k:.0f} source pixels on average, measured {where}"
-        return Track(paths[0], float(area * k * k), k, note, objects(paths))
+        size = "" if found is not None else f", {area * k * k:.0f} source pixels on average"  # a template's size is in `how`
+        note = f"{how}{size}, measured {where}"
+        return Track(source(xy), float(area * k * k), k, note, objects(source(paths)), followed=found is not None)
 
 
 def objects(paths: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -105,10 +114,10 @@ def measure(stack: np.ndarray) -> tuple[np.ndarray, float]:
     return paths[0], area
 
 
-def measure_paths(stack: np.ndarray, objects: int = 1) -> tuple[np.ndarray, float]:
+def measure_paths(stack: np.ndarray, objects: int = 1, per_frame: bool = False) -> tuple[np.ndarray, Any]:
     """(objects, T, 2) the paths of the `objects` strongest moving things in gray frames
     (T, H, W) uint8 (see follow), the first the object's, NaN where a path has nothing; and the
-    first object's mean area in pixels."""
+    first object's mean area in pixels (per_frame: its area in each frame, (T,), NaN where unseen)."""
     sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), BACKGROUND_FRAMES)).round().astype(int))
     background = np.median(stack[sample], axis=0).round().astype(np.uint8)
     noise = _noise(stack[sample[::6]], background)
@@ -138,6 +147,8 @@ def measure_paths(stack: np.ndarray, objects: int = 1) -> tuple[np.ndarray, floa
                 if np.isnan(xy[t, 0]) or np.any((np.abs(mx - xy[t, 0]) < reach) & (np.abs(my - xy[t, 1]) < reach)):
                     found[t] = _candidates(stack[t], rebuilt, noise)
     paths, area = _paths(found, len(stack), objects)
+    if per_frame:
+        return paths, area
     return paths, float(np.nanmean(area)) if np.isfinite(area).any() else 0.0
 
 

@@ -83,6 +83,12 @@ def _weak_axes(xy: torch.Tensor, axes: list[str]) -> list[int]:
     return [i for i, axis in enumerate(axes) if float(columns[axis].std()) < BARELY * spread]
 
 
+# what a position reads: the change's centroid, or the object followed by its appearance where the
+# reader took that (fitode.video.follow: the change detector's path went from one thing to another)
+CENTROID = "the centroid of what differs most from the static scene ({pixels:.0f} pixels on average)"
+FOLLOWED = "the object followed by its appearance ({pixels:.0f} pixels)"
+
+
 class PositionObservation(MeasuredObservation):
     """The camera sees where something is: the latent is affine in its image coordinates.
 
@@ -113,7 +119,7 @@ class PositionObservation(MeasuredObservation):
     def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
         out = ObservationModel.prepare(self, frames, architecture, fit_frames)  # the components the checks score against
         xy, pixels, unseen, _ = centroids(frames, fit_frames)
-        where, disagree = "", ""
+        where, disagree, what = "", "", CENTROID
         if self.object is not None:  # one object of several: the shrunk frames' centroid is the strongest's
             if self.track is None or len(self.track) != frames.shape[0]:
                 raise ConfigError(f"{self.name}@{self.object}: the reader has no track of the objects (a video file "
@@ -134,6 +140,7 @@ class PositionObservation(MeasuredObservation):
                     or _strays(full, fit_frames) < _strays(xy, fit_frames)):
                 xy, pixels, unseen = full, self.track.area, self.track.unseen
                 where = "the reader's track at the source's resolution: "
+                what = FOLLOWED if self.track.followed else CENTROID
             else:
                 disagree = (f"; the reader's track at the source's resolution was set aside: it follows the "
                             f"shrunk frames' centroids with a correlation of only {agree:.2f} and jumps more "
@@ -146,7 +153,7 @@ class PositionObservation(MeasuredObservation):
         states = tuple(self.equation_states or ())
         axes = [axis_of(state) for state in states]
         if states and all(axes):
-            prepared = self._axes(xy, states, axes, n_fit, out.components, pixels, where, frames.dtype)
+            prepared = self._axes(xy, states, axes, n_fit, out.components, pixels, where, frames.dtype, what)
             weak = _weak_axes(xy[:n_fit], axes)
             if weak:
                 names = ", ".join(f"{states[i]} ({'across' if axes[i] == 'x' else 'up'})" for i in weak)
@@ -155,7 +162,7 @@ class PositionObservation(MeasuredObservation):
                                     "name the state s to read its line of motion instead")
                 prepared.note += "; " + prepared.caution
         else:
-            prepared = self._line(xy, n_fit, out.components, pixels, where, frames.dtype)
+            prepared = self._line(xy, n_fit, out.components, pixels, where, frames.dtype, what)
         if where:  # the reader's track is in the source's pixels, with a frame it did not see left out
             prepared.drawing.update(space="source",
                                     track=[None if np.isnan(x) else [float(x), float(y)] for x, y in self.track.xy])
@@ -163,15 +170,14 @@ class PositionObservation(MeasuredObservation):
         return prepared
 
     def _line(self, xy: torch.Tensor, n_fit: int, components: np.ndarray, pixels: float, where: str,
-              dtype: torch.dtype) -> Prepared:
+              dtype: torch.dtype, what: str = CENTROID) -> Prepared:
         """One column: the position along the line of motion."""
         # the line of motion: a linear encoder of two collinear coordinates can cancel its own signal
         direction, raw = line_of_motion(xy, n_fit)
         path, mended = mend(raw, n_fit)
         z = path / path[:n_fit].std().clamp_min(1e-6)
         angle = float(torch.rad2deg(torch.atan2(direction[1], direction[0]))) % 180
-        note = (f"position: {where}the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
-                f"average), along its line of motion ({angle:.0f} degrees from the image's x axis), read linearly")
+        note = (f"position: {where}{what.format(pixels=pixels)}, along its line of motion ({angle:.0f} degrees from the image's x axis), read linearly")
         note = _mended(note, mended)
         frames = tuple(int(i) for i in torch.nonzero(path != raw).flatten())
         drawing = record(self.name, reading="line", track=points(xy), mended=list(frames) if mended else None,
@@ -203,7 +209,7 @@ class PositionObservation(MeasuredObservation):
         return path / unit
 
     def _axes(self, xy: torch.Tensor, states: tuple[str, ...], axes: list[str], n_fit: int, components: np.ndarray,
-              pixels: float, where: str, dtype: torch.dtype) -> Prepared:
+              pixels: float, where: str, dtype: torch.dtype, what: str = CENTROID) -> Prepared:
         """One column per state, each the image axis its name says (x across, y/h/z up), so that
         `y'' = -g` reads the height of a throw, not its flight's main direction (the horizontal)."""
         columns, total, frames, scales = [], 0, set(), []
@@ -217,8 +223,7 @@ class PositionObservation(MeasuredObservation):
             columns.append(coordinate / spread)
             scales.append(spread * self.lengths.factor((1.0, 0.0) if axis == "x" else (0.0, 1.0), source=bool(where)))
         named = ", ".join(f"{s} {'across' if a == 'x' else 'up'}" for s, a in zip(states, axes))
-        note = (f"position: {where}the centroid of what differs most from the static scene ({pixels:.0f} pixels on "
-                f"average), each state read along the image axis its name says ({named}), linearly")
+        note = (f"position: {where}{what.format(pixels=pixels)}, each state read along the image axis its name says ({named}), linearly")
         note = _mended(note, total)
         inputs = torch.stack(columns, dim=1).to(dtype).reshape(len(columns[0]), len(columns), 1, 1)
         drawing = record(self.name, track=points(xy), states={s: a for s, a in zip(states, axes)},

@@ -27,6 +27,8 @@ class Track:
     # the moving objects' paths (T, 2) from left to right (fitode.video.track.objects), for the
     # states that name their object (`position@2`); xy is the strongest path's
     objects: tuple[np.ndarray, ...] = ()
+    # xy is the object followed by its appearance (fitode.video.follow), not the change's centroid
+    followed: bool = False
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])
@@ -50,7 +52,7 @@ class Track:
 
     def head(self, n: int) -> "Track":
         """The first n frames (a trimmed or strided clip's track follows its frames)."""
-        return Track(self.xy[:n], self.area, self.factor, self.note, tuple(p[:n] for p in self.objects))
+        return Track(self.xy[:n], self.area, self.factor, self.note, tuple(p[:n] for p in self.objects), self.followed)
 
     def object(self, k: int) -> "Track":
         """The track of the k-th moving object from the left (1-based); ConfigError where fewer
