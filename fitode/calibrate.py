@@ -333,10 +333,7 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     check_times(points, float(time[0]), float(time[-1]), slack=0.5 * float(result.dt))
     latent = np.asarray(result.latent, dtype=float)
     maps = fit_affine(points, time, latent, result.states)
-    x = latent.copy()
-    for s, m in maps.items():
-        col = result.states.index(s)
-        x[:, col] = m.a * latent[:, col] + m.b
+    x = _mapped(latent, maps, result.states)
     best = next(r for r in result.runs if r.index == result.best).final
     settings = result.settings
     options = {"integrator": str(settings.get("integrator", "rk4")), "substeps": int(settings.get("substeps", 1)),
@@ -392,14 +389,20 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     # off its data in track.csv, and a dropped ball's through the floor
     fitted_path = np.asarray(result.rollout, dtype=float) if result.rollout is not None else None
     if fitted_path is not None and fitted_path.shape == latent.shape:
-        rollout = fitted_path.copy()
-        for s, m in maps.items():
-            col = result.states.index(s)
-            rollout[:, col] = m.a * fitted_path[:, col] + m.b
+        rollout = _mapped(fitted_path, maps, result.states)
     else:
         rollout = _rollout(system, params, x, result.dt, best_after, settings)
     loss = fitted.misfit ** 2 if fitted is not None else math.nan
     return Calibration(list(points), maps, constants, x, rollout, loss, time_offset, notes)
+
+
+def _mapped(path: np.ndarray, maps: Mapping[str, AffineMap], states: Sequence[str]) -> np.ndarray:
+    """path (T, k) with each mapped state's column through its map; the others as they are."""
+    out = path.copy()
+    for s, m in maps.items():
+        col = list(states).index(s)
+        out[:, col] = m.a * path[:, col] + m.b
+    return out
 
 
 def map_factors(system, maps: Mapping[str, AffineMap], x: np.ndarray, states: Sequence[str]) -> dict[str, float | None]:

@@ -186,7 +186,7 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
         states=list(system.states), equation=system.text, fixed=dict(system.fixed),
         settings=config.as_dict(), selection_factor=config.selection_factor,
         meta={"interrupted": interrupted, "plan": plan.to_dict(), "measured": observation.measured,
-              "bends": observation.can_bend, "bend_floor": getattr(observation, "bend_floor", None),
+              "bends": observation.can_bend, "bend_floor": observation.bend_floor,
               "physical_units": observation.fixes_scale() or len(units) == len(system.states), "units": units,
               "length": _length_record(observation, units), "subspace": prepared.note, "rank": prepared.rank,
               "gauge": {s: g.describe() for s, g in gauges.items()}, "own_units": sorted(own_units),

@@ -113,6 +113,7 @@ class ObservationModel:
     # the latent is the state in its own physical units (radians for an angle): no gauge, no prior
     physical_units = False
     no_stretch = "no stretch is looked for"  # the stretch line's reason where applies("stretch") is False
+    bend_floor: float | None = None  # the least bends' share of a constant's value (None: the interval's own)
     object: int | None = None  # the moving object it reads, k-th from the left (position@2); None: the strongest
 
     def __init__(self, subspace: bool = True):
