@@ -6,6 +6,7 @@ choice of runs in selection.py.
 """
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, replace
 from typing import Callable, Mapping
@@ -106,7 +107,8 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
     if _measured_columns(prepared) and observation.applies("direct"):  # measured: fit the path itself, no encoder
         try:
             measured = prepared
-            fit, perspective, straight, prepared, extra_meta = _measured_fit(measured, plan, gauges, stretch)
+            searched: list = []  # the stretch search's answer, which the pass at the settled step size reuses
+            fit, perspective, straight, prepared, extra_meta = _measured_fit(measured, plan, gauges, stretch, searched)
             first, last = extra_meta["stretch"]["start_frame"], extra_meta["stretch"]["end_frame"]
             with _threads(config.threads):
                 steps = settle_substeps(system, params, fit.latents[fit.best, first:last], dt, straight,
@@ -114,7 +116,8 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
             if steps.substeps != config.substeps:  # the steps the path needs, read by everything after
                 plan = replace(plan, config=replace(config, substeps=steps.substeps))
                 config = plan.config
-                fit, perspective, straight, prepared, extra_meta = _measured_fit(measured, plan, gauges, stretch)
+                fit, perspective, straight, prepared, extra_meta = _measured_fit(measured, plan, gauges, stretch,
+                                                                                 searched)
             integration = {**steps.to_dict(), "reason": steps.reason(config.integrator)}
         except TrainingError as exc:
             # no restart's trajectory followed the path (a learned scale that runs off, a path of
@@ -278,11 +281,15 @@ def _prior_units(x: np.ndarray, plan: FitPlan, spread) -> np.ndarray:
     return mean + std * (x - x[:plan.n_train].mean(axis=0)) / np.maximum(spread, 1e-12)
 
 
-def _measured_fit(prepared, plan: FitPlan, gauges, stretch: tuple[int, int] | None = None):
+def _measured_fit(prepared, plan: FitPlan, gauges, stretch: tuple[int, int] | None = None,
+                  searched: list | None = None):
     """The measured path fitted directly (train/direct.py) on its stretch (train/stretch.py), with
     the perspective re-reading where the observation has one: the _Pass the rest of fit_frames
     reads (every run reads the same latent), the perspective numbers, the best run's trajectory
-    fit, the prepared columns as fitted, and the meta it adds ("stretch", "trajectory")."""
+    fit, the prepared columns as fitted, and the meta it adds ("stretch", "trajectory").
+    searched: where the stretch search's answer (stretch, record, pieces) is kept: empty, it is
+    searched and put there; filled by an earlier pass over the same path, it is reused (the pass
+    at the settled step size asks again only for the constants, not where the law holds)."""
     system, params, config, observation, dt = plan.system, plan.params, plan.config, plan.observation, plan.dt
     latent = _measured_latent(prepared, plan)
     latent = latent * orientation(system, params, latent[:plan.n_train], dt,
@@ -292,7 +299,10 @@ def _measured_fit(prepared, plan: FitPlan, gauges, stretch: tuple[int, int] | No
     options = {"integrator": config.integrator, "substeps": config.substeps}
     pieces = None
     if stretch is None:
-        stretch, record, pieces = _stretch(latent, plan, gauges)
+        found = searched[0] if searched else _stretch(latent, plan, gauges)
+        if searched is not None and not searched:
+            searched.append(found)
+        stretch, record, pieces = found[0], copy.deepcopy(found[1]), found[2]
     else:
         record = None
     first, last = stretch
