@@ -100,8 +100,21 @@ class IdentifiabilityReport:
         return out
 
 
+_ANALYSED: dict = {}
+
+
 def analyse(system: OdeSystem, *, seed: int = _SEED) -> IdentifiabilityReport:
-    """Classify every learnable constant of `system` (see the module docstring for how)."""
+    """Classify every learnable constant of `system` (see the module docstring for how). The
+    report is kept per equation and seed: one run asks for it three times (the header, the fit's
+    units, the assessment), at a few hundred milliseconds of sympy each."""
+    key = (system.states, tuple(sorted(system.orders.items())), tuple(system.rhs[s] for s in system.states),
+           tuple(sorted(system.fixed.items())), system.learnable, seed)
+    if key not in _ANALYSED:
+        _ANALYSED[key] = _analyse(system, seed)
+    return _ANALYSED[key]
+
+
+def _analyse(system: OdeSystem, seed: int) -> IdentifiabilityReport:
     names = list(system.learnable)
     if not names:
         return IdentifiabilityReport((), 0)
