@@ -264,21 +264,24 @@ def _flush(buffer: list[tuple], records: list[RunRecord], names: list[str], call
     if not buffer:
         return
     steps = [b[0] for b in buffer]
-    was, ok, loss, mse, kl = (torch.stack([b[i] for b in buffer]).cpu() for i in range(1, 6))
-    consts = torch.stack([b[6] for b in buffer]).cpu().double()
+    # Python lists in one conversion each: indexing a tensor element by element cost most of the
+    # loop's bookkeeping (a tensor made per number); the floats are the same
+    was, ok, loss, mse, kl = (torch.stack([b[i] for b in buffer]).cpu().tolist() for i in range(1, 6))
+    consts = torch.stack([b[6] for b in buffer]).cpu().double().tolist()
     buffer.clear()
     seen: list[StepInfo] = []
     for r, rec in enumerate(records):
         for k, step in enumerate(steps):
-            if not bool(was[k, r]):
+            if not was[k][r]:
                 continue
-            if not bool(ok[k, r]):
+            if not ok[k][r]:
                 rec.status, rec.steps = "failing", step - 1  # frozen at the values that failed at this step
                 break
-            values = {n: float(consts[k, r, j]) for j, n in enumerate(names)}
-            rec.history.append(step, float(loss[k, r]), float(mse[k, r]), float(kl[k, r]), values)
-            rec.final, rec.loss, rec.steps = values, float(loss[k, r]), step
-            seen.append(StepInfo(r, step, float(loss[k, r]), float(mse[k, r]), float(kl[k, r]), values))
+            values = dict(zip(names, consts[k][r]))
+            rec.history.append(step, loss[k][r], mse[k][r], kl[k][r], values)
+            rec.final, rec.loss, rec.steps = values, loss[k][r], step
+            if callback is not None:
+                seen.append(StepInfo(r, step, loss[k][r], mse[k][r], kl[k][r], values))
     if callback is not None:
         for info in seen:
             callback(info)
