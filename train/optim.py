@@ -39,6 +39,7 @@ class BatchedAdam:
         self._lr = torch.cat([torch.full((n,), lr, dtype=dtype, device=device) for n, lr in zip(sizes, lrs)])[None]
         self._m = torch.zeros(restarts, start, dtype=dtype, device=device)
         self._v = torch.zeros(restarts, start, dtype=dtype, device=device)
+        self._gathered: torch.Tensor | None = None
 
     def params(self):
         return list(self._params)
@@ -49,9 +50,17 @@ class BatchedAdam:
     def zero_grad(self) -> None:
         for p in self._params:
             p.grad = None
+        self._gathered = None
 
     def _gradients(self) -> torch.Tensor:
-        """(R, N) every parameter's gradient side by side; zeros where a parameter has none."""
+        """(R, N) every parameter's gradient side by side; zeros where a parameter has none.
+        Gathered once per step: finite_grads and step read the same gradients (zero_grad and step
+        forget them)."""
+        if self._gathered is None:
+            self._gathered = self._gather()
+        return self._gathered
+
+    def _gather(self) -> torch.Tensor:
         return torch.cat([p.grad.reshape(self.restarts, -1) if p.grad is not None else
                           torch.zeros(self.restarts, self._slices[id(p)].stop - self._slices[id(p)].start,
                                       dtype=self._m.dtype, device=self._m.device)
@@ -93,3 +102,4 @@ class BatchedAdam:
         denom = (self._v.sqrt() / bc2_sqrt) + self.eps
         update = torch.where(on, step_size * self._m / denom, zero)
         torch._foreach_sub_(self._params, [self._view(update, p) for p in self._params])
+        self._gathered = None
