@@ -53,7 +53,9 @@ STAGES = {
     "fit": [("fitode.api", "fit_frames")],
     "intervals": [("fitode.api", "_intervals")],
     "assessment": [("fitode.api", "_calibrate"), ("fitode.train.assess", "assess")],
-    "pictures": [("fitode.pipeline", "_try_plot")],
+    # the result's own pictures (latent, params, loss) are drawn by fitode.output's _try_plot, track
+    # and frames by the name fitode.pipeline imported: both are patched, or three fall into the rest
+    "pictures": [("fitode.pipeline", "_try_plot"), ("fitode.output", "_try_plot")],
 }
 COLUMNS = ["start-up", *STAGES, "the rest"]
 
