@@ -165,3 +165,29 @@ def test_track_png_shades_every_piece_and_marks_every_event():
     assert len(ax.patches) == len(pieces.spans) and f"the {len(pieces.spans)} pieces fitted together" in labels
     assert {"held until", "a bounce"} <= set(labels)
     assert len(ax.lines) == sum(e.kind != "release" for e in pieces.events)
+
+
+def test_a_ball_filmed_at_30_fps_keeps_its_short_flights_and_not_what_follows_them():
+    # flights of 20 down to 6 frames, a centroid blurred into the shadow for two frames before the
+    # first bounce (read from the neighbours, so unread), then the ball lies still and a hand picks
+    # it up: the flights pieces, the short ones too, the unread frames in none, the hand's lift no flight
+    from fitode.synth.scenes import _flights
+
+    dt, a = 1 / 30, 8829.0
+    t = np.arange(150) * dt - 0.5
+    y, _, times = _flights(900.0, 0.0, a, 0.75, 5, t)
+    y = y + 300 * np.clip(t - 3.3, 0, None) ** 2 + np.random.default_rng(6).normal(0, 0.3, len(t))
+    bounce = [(tb + 0.5) / dt for tb in times]  # in frames; the last is the landing
+    unread = np.zeros(len(t), dtype=bool)
+    unread[int(bounce[0]) - 2:int(bounce[0])] = True
+    y[unread] += 50.0
+    pieces = find_pieces(y[:, None], dt, parabola_fit(y), unread=unread)
+    spans = pieces.spans
+    assert len(spans) >= 4, pieces.describe(dt, n_frames=len(t))
+    for (a0, b0), lo, hi in zip(spans, [0.0] + bounce, bounce):  # each flight between its bounces
+        assert lo <= a0 and b0 <= hi + 1, (spans, bounce)
+    assert not any(a0 <= i < b0 for a0, b0 in spans for i in np.flatnonzero(unread))
+    assert spans[-1][1] <= bounce[-1] + 1  # the hand's lift is no piece
+    assert min(b0 - a0 for a0, b0 in spans) < 12  # shorter than a search's seed
+    joint = fit_pieces(parse("y'' = -a"), {}, y[:, None], dt, spans, {"a": 5000.0})
+    assert joint.values["a"] == pytest.approx(a, rel=0.01)
