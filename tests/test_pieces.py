@@ -191,3 +191,13 @@ def test_a_ball_filmed_at_30_fps_keeps_its_short_flights_and_not_what_follows_th
     assert min(b0 - a0 for a0, b0 in spans) < 12  # shorter than a search's seed
     joint = fit_pieces(parse("y'' = -a"), {}, y[:, None], dt, spans, {"a": 5000.0})
     assert joint.values["a"] == pytest.approx(a, rel=0.01)
+
+
+def test_track_png_says_a_frame_between_two_pieces_is_outside_them():
+    from fitode.plots import _in_stretch
+
+    record = {"pieces": [[10, 20], [25, 40]]}
+    stretch = {"start_frame": 10, "end_frame": 20}  # the longest piece: frames of the others are fitted too
+    inside = _in_stretch(stretch, 50, record)
+    assert inside[10:20].all() and inside[25:40].all() and not inside[20:25].any() and not inside[40:].any()
+    assert _in_stretch(stretch, 50)[10:20].all() and not _in_stretch(stretch, 50)[25:40].any()
