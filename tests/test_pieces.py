@@ -201,3 +201,16 @@ def test_track_png_says_a_frame_between_two_pieces_is_outside_them():
     inside = _in_stretch(stretch, 50, record)
     assert inside[10:20].all() and inside[25:40].all() and not inside[20:25].any() and not inside[40:].any()
     assert _in_stretch(stretch, 50)[10:20].all() and not _in_stretch(stretch, 50)[25:40].any()
+
+
+def test_a_throw_is_released_at_its_launch_not_at_its_top():
+    # held still for 7 frames, then thrown up at 3.9 m/s (60 fps, 192 px/m): flat before the top
+    # looks like a release from rest, but only the launch is flat before and a parabola after
+    from fitode.train.pieces import release
+
+    dt = 1 / 60
+    t = np.arange(61) * dt - 7 * dt
+    y = 192 * np.where(t < 0, 0.0, 3.92 * t - 4.9 * t ** 2) + np.random.default_rng(3).normal(0, 0.1, len(t))
+    assert abs(release(y[:, None], 0, 20, 55, dt) - 7) <= 1
+    pieces = find_pieces(y[:, None], dt, parabola_fit(y))
+    assert abs(pieces.spans[0][0] - 7) <= 1 and pieces.spans[0][1] >= 58

@@ -34,6 +34,7 @@ JUMP = 6.0        # an impact: the velocities either side of a frame differ by t
 MOVING = 2.0      # ... and turn round, at least this many times that noise fast either side
 RELEASE_S = 0.15  # seconds either side of a release its parabola from rest is fitted over
 RELEASE_SPAN = 4  # ... searched this many of those either side of where the piece was found to start
+RELEASE_MIN = 3   # ... with at least this many frames of the hold before it
 HOLD_SHARE = 0.03  # a first or last piece that travels less than this share of the longest is a hold or a stop
 SIDE_S = 0.12     # seconds each side a velocity is read from, SIDE_FRAMES frames at least and at most
 SIDE_FRAMES = (3, 12)
@@ -292,23 +293,28 @@ def _parts(x: np.ndarray, a: int, b: int, dt: float, fit, noise: float, min_len:
 
 def release(x: np.ndarray, lo: int, a: int, b: int, dt: float) -> int | None:
     """The frame a thing held still until then is let go, near the start a of the piece [a, b)
-    (no earlier than lo): where the path, flat before, leaves its place as a parabola from rest
-    (x = c before, c + q (t - r)^2 after: any equation's motion from rest, over a short time),
-    fitted over RELEASE_S seconds either side of every candidate frame r; the r where it leaves the
-    least share of the window's spread unexplained. None where
+    (no earlier than lo): where the path, flat before, leaves its place as a parabola (x = c
+    before, c + v (t - r) + q (t - r)^2 after: any equation's motion over a short time, from rest
+    where a hand lets go, with a speed where it throws), fitted over RELEASE_S seconds either side
+    of every candidate frame r (fewer before it where the clip starts sooner, RELEASE_MIN at
+    least); the r where it leaves the least share of the window's spread unexplained. None where
     the path (its column of largest range) has too few frames around a."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     column = x[:, int(np.argmax(np.ptp(x[a:b], axis=0)))]
     w = int(np.clip(round(RELEASE_S / dt), 4, 40))
-    first, last = max(lo + w, a - RELEASE_SPAN * w), min(b - w, a + RELEASE_SPAN * w)
+    first, last = max(lo + RELEASE_MIN, a - RELEASE_SPAN * w), min(b - w, a + RELEASE_SPAN * w)
     best, where = math.inf, None
     for r in range(first, last + 1):
-        y = column[r - w:r + w]
-        s = np.arange(-w, w, dtype=np.float64) + 0.5  # the release between frames r - 1 and r
-        basis = np.stack([np.ones(2 * w), np.where(s > 0, s * s, 0.0)], axis=1)
+        before = min(w, r - lo)
+        y = column[r - before:r + w]
+        s = np.arange(-before, w, dtype=np.float64) + 0.5  # the release between frames r - 1 and r
+        after = s > 0
+        basis = np.stack([np.ones(len(s)), np.where(after, s, 0.0), np.where(after, s * s, 0.0)], axis=1)
         coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
         # the share of the window's spread left unexplained: a hand's small wander fits a flat line and
-        # a parabola poorly, the release of a swing's pull almost exactly
+        # a parabola poorly, the release of a swing's pull almost exactly; a throw's top is no
+        # release, its path before it is no flat line (a release from rest alone took a 60 fps
+        # throw's top for its launch, and fitted half its flight)
         sse = float(np.sum((basis @ coef - y) ** 2)) / max(float(np.sum((y - y.mean()) ** 2)), 1e-300)
         if sse < best:
             best, where = sse, r
