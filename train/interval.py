@@ -218,6 +218,15 @@ class _Batch:
         self.weight = 1.0 / np.maximum(x.std(axis=0), 1e-24)  # every state counts equally, as fit_trajectory's
         self.state_weight = self.weight
 
+    def enough(self) -> bool:
+        """Enough frames for the refits: one trajectory twice as many beyond its starting frames as it
+        has numbers to fit; several pieces, whose starting frames are only read for a state, two
+        rolled-out frames per piece and per constant (three flights of a ball filmed at 30 fps are
+        28 frames, and 16 numbers with their starting frames)."""
+        if len(self.lengths) == 1:
+            return self.T >= self.nc + 2 * self.p
+        return self.T - len(self.lengths) * self.nc >= 2 * (self.m + len(self.lengths))
+
     def weigh_pieces(self, resid: np.ndarray) -> np.ndarray:
         """Weigh each piece by its own noise, from the residuals (T, k) of a fit: a flight read
         near the bumper, or a bounce far from the camera, is measured less well than another, and
@@ -376,7 +385,7 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
         # a refit that runs off overflows on its way to NaN, which is dropped below: not a warning
         with np.errstate(over="ignore", invalid="ignore"):
             batch = _Batch(system, params, x, dt, integrator, substeps, pieces)
-            if batch.T < batch.nc + 2 * batch.p:
+            if not batch.enough():
                 return None
             theta0 = np.concatenate([[float(values[n]) for n in batch.names], batch.starts(x)])[None]
             centre = batch.gauss_newton(theta0, x[None], CENTRE_ITERATIONS)
