@@ -62,8 +62,7 @@ def simulate_system(system, constants: dict[str, float], y0: dict[str, float], n
                           f"(its constants: {', '.join(layout.constants) or 'none'})")
     init = {s: [float(y0.get(s + "'" * k, 0.0)) for k in range(system.orders[s])] for s in system.states}
     full = simulate(system, {k: float(v) for k, v in constants.items()}, init, int(n_frames), float(dt),
-                    integrator="rk4", substeps=int(substeps), full=True)
-    full = full.detach().cpu().numpy().astype(np.float64)
+                    integrator="rk4", substeps=int(substeps), full=True, numpy=True)
     if not np.all(np.isfinite(full)):
         raise FitodeError("the simulated trajectory is not finite (it blows up): choose other "
                           "constants, initial state, dt or number of frames")
