@@ -153,3 +153,14 @@ def test_the_power_of_the_scale_each_constant_moves_by(text, free, expected):
     from fitode.eqparse.identify import scale_exponents
     system = parse(text, free=free) if free else parse(text)
     assert scale_exponents(system) == expected
+
+
+def test_the_report_is_kept_per_equation_and_its_fixed_values():
+    # one run asks three times; a parse of the same text gives the same report, a changed fixed
+    # value or another seed a new one
+    eq = "theta'' = -g/L*sin(theta) - zeta*theta'"
+    first = analyse(parse(eq))
+    assert analyse(parse(eq)) is first
+    assert analyse(parse(eq, fix={"g": 9.0})) is not first
+    assert analyse(parse(eq), seed=1) is not first
+    assert analyse(parse(eq, fix={"g": 9.0}))["L"].scale == first["L"].scale

@@ -294,6 +294,24 @@ def test_simulate_guards_too():
         simulate(parse("x' = exp(x)"), {}, {"x": 1.0}, 30, 0.1, dtype=torch.float32)
 
 
+@pytest.mark.parametrize("eq, constants, y0", [
+    ("theta'' = -g/L*sin(theta) - zeta*theta'", {"L": 0.9, "zeta": 0.05}, {"theta": [0.8, 0.0]}),
+    ("y'' = -g", {}, {"y": [1.0, 2.0]}),
+    ("u' = a*u - b*u*v; v' = -c*v + d*u*v", {"a": 1.0, "b": 0.5, "c": 0.8, "d": 0.3}, {"u": 2.0, "v": 1.0}),
+])
+def test_simulate_in_numpy_takes_the_same_steps(eq, constants, y0):
+    system = parse(eq)
+    ref = simulate(system, constants, y0, 60, 0.05, substeps=7, full=True).numpy()
+    got = simulate(system, constants, y0, 60, 0.05, substeps=7, full=True, numpy=True)
+    assert isinstance(got, np.ndarray) and got.shape == ref.shape
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
+
+
+def test_simulate_in_numpy_names_what_went_non_finite():
+    with pytest.raises(NonFiniteError, match="exp"):
+        simulate(parse("x' = exp(x)"), {}, {"x": 1.0}, 30, 0.1, numpy=True)
+
+
 # --------------------------------------------------------------------------- devices and dtypes
 def test_float32_block_follows_input_dtype():
     block = _block(dtype=torch.float32)

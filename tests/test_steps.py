@@ -56,3 +56,18 @@ def test_the_paper_motion_video_gives_the_damping_within_a_tenth_of_a_percent(tm
         assert p.value == pytest.approx(truth, rel=1e-3)
         assert p.interval[0] <= truth <= p.interval[1]
         assert result.verdicts[name]["verdict"] == "trusted"
+
+
+@pytest.mark.slow
+def test_the_pass_at_the_settled_step_size_reuses_the_stretch_search(monkeypatch):
+    # the paper's coarse motion needs 2 steps a frame: the constants are fitted again at that
+    # step, where the law holds is not searched again
+    from fitode.train import trainer
+    calls = []
+    search = trainer._stretch
+    monkeypatch.setattr(trainer, "_stretch", lambda *a, **k: calls.append(1) or search(*a, **k))
+    video = synth.paper_video("motion", n_frames=120)
+    result = fitode.fit(video.frames, video.dt, eq="z'' + g1*z' + g0*z = 0", restarts=2, progress=False)
+    assert result.meta.get("direct") and result.settings["substeps"] >= 2
+    assert len(calls) == 1
+    assert result.meta["stretch"]["source"] == "found" and result.meta["stretch"]["end_frame"] == 120
