@@ -214,3 +214,4 @@ def test_a_throw_is_released_at_its_launch_not_at_its_top():
     assert abs(release(y[:, None], 0, 20, 55, dt) - 7) <= 1
     pieces = find_pieces(y[:, None], dt, parabola_fit(y))
     assert abs(pieces.spans[0][0] - 7) <= 1 and pieces.spans[0][1] >= 58
+    assert pieces.describe(dt, n_frames=len(t)).startswith("held still until")  # not "moved by ... (a hand?)"

@@ -28,7 +28,7 @@ from typing import Callable
 
 import numpy as np
 
-from .stretch import BREAK, MIN_SEED, TOL, at_rest, find_stretch, noise_level
+from .stretch import BREAK, MIN_SEED, REST_SIGMAS, TOL, at_rest, find_stretch, noise_level
 
 JUMP = 6.0        # an impact: the velocities either side of a frame differ by this many times their noise
 MOVING = 2.0      # ... and turn round, at least this many times that noise fast either side
@@ -251,7 +251,11 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
     if spans:
         first = spans[0][0]
         if first > 0:
-            still = rest[:first].mean() > 0.5
+            # still: at rest over most of what came before, or, a hold shorter than a rest's window
+            # (a throw held 7 frames at 60 fps), flat over the frames the release was read from
+            held = x[max(first - _release_window(dt), 0):first]
+            still = rest[:first].mean() > 0.5 or (
+                len(held) >= RELEASE_MIN and float(np.ptp(held, axis=0).max()) <= REST_SIGMAS * noise_all)
             events.append(Event(first, "hold" if still else "moved"))
             events.append(Event(first, "release"))
         for (_, b), (a, _) in zip(spans, spans[1:]):
@@ -301,7 +305,7 @@ def release(x: np.ndarray, lo: int, a: int, b: int, dt: float) -> int | None:
     the path (its column of largest range) has too few frames around a."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     column = x[:, int(np.argmax(np.ptp(x[a:b], axis=0)))]
-    w = int(np.clip(round(RELEASE_S / dt), 4, 40))
+    w = _release_window(dt)
     first, last = max(lo + RELEASE_MIN, a - RELEASE_SPAN * w), min(b - w, a + RELEASE_SPAN * w)
     best, where = math.inf, None
     for r in range(first, last + 1):
@@ -337,6 +341,11 @@ def _widened(cuts: list[tuple[int, int]], unread: np.ndarray) -> list[tuple[int,
         else:
             out.append((a, b))
     return out
+
+
+def _release_window(dt: float) -> int:
+    """The frames each side of a release its parabola is fitted over (RELEASE_S, 4 to 40)."""
+    return int(np.clip(round(RELEASE_S / dt), 4, 40))
 
 
 def _side(dt: float) -> int:
