@@ -12,6 +12,10 @@ across the band (the median profile's last row minus its first). That is exact f
 of the line (a meniscus, a highlight on the surface, a ball floating on it) that moves with it,
 and it sums the whole band's pixels, so it reads a fraction of a pixel on shrunk frames (on the
 coverage bench's drains: 0.04-0.06 pixels rms about the true level, 1% of a 4-pixel travel).
+Where the reader has read the water line itself at the source's resolution (the track's `line`:
+fitode.video.waterline), the level is that line's height in source pixels instead: the sum over a
+band takes the step across it from the band's end rows, and on the shared bottle at half its
+resolution the band ran down to the bottle's floor (read_level: a travel of 318 pixels for 159).
 """
 from __future__ import annotations
 
