@@ -117,8 +117,10 @@ def _band(change: np.ndarray, floor: float) -> np.ndarray | None:
 
 def _anchor(ends: np.ndarray) -> float:
     """The row most bands end at (within ANCHOR): the line's place in the median frame."""
-    counts = (np.abs(ends[:, None] - ends[None, :]) <= ANCHOR).sum(axis=1)
-    mode = ends[int(np.argmax(counts))]
+    rows = ends.astype(int)  # a band's ends are whole rows
+    reach = int(ANCHOR)
+    within = np.convolve(np.bincount(rows), np.ones(2 * reach + 1), mode="full")[reach:reach + rows.max() + 1]
+    mode = int(np.argmax(within))
     return float(np.median(ends[np.abs(ends - mode) <= ANCHOR]))
 
 
