@@ -162,6 +162,15 @@ def _measured(m: Mapping[str, Any], how: str, track, n: int):
     if how == "level" and m.get("levels"):
         levels = np.array([np.nan if v is None else v for v in m["levels"][:n]], dtype=float)
         return levels, "height of the water line\n(rows of the frames fitted, up)", same, None
+    if how in ("x", "y"):  # a state read along the image axis its name says (train/observe/position.py)
+        column, sign = (0, 1.0) if how == "x" else (1, -1.0)  # y up: the image's rows grow down
+
+        def on_axis(v):  # the fitted coordinate where the tracked point is on the other axis
+            points = track.copy()
+            points[:, column] = sign * np.asarray(v, dtype=float)
+            return points
+        label = "across" if how == "x" else "height, up"
+        return sign * track[:, column], f"{label}\n(pixels of the source video)", same, on_axis
     if how == "angle" and m.get("pivot") is not None:
         pivot = np.asarray(m["pivot"], float)
         radius = float(m.get("radius") or np.nanmedian(np.hypot(*(track - pivot).T)))

@@ -380,7 +380,7 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
     fig = plt.figure(figsize=(width, tall + 2.3 + 2.3 * len(readings)))
     # a row of its own for the legend of the frames: above them it would cover the title
     grid = fig.add_gridspec(n_rows + 1, max(len(idx), 1), height_ratios=[0.45, tall + 0.6] + [2.0] * len(readings))
-    inside = _in_stretch(stretch, len(t))
+    inside = _in_stretch(stretch, len(t), pieces)
     for k, i in enumerate(idx):
         ax = fig.add_subplot(grid[1, k])
         img, extent = stills[i]
@@ -392,7 +392,8 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
         shown = view or _whole(extent, m)
         ax.set_xlim(shown[0], shown[2])
         ax.set_ylim(shown[3], shown[1])
-        where = "" if stretch is None else ("(in the stretch)" if inside[i] else "(outside the stretch)")
+        what = "the pieces" if pieces and pieces.get("pieces") else "the stretch"
+        where = "" if stretch is None else (f"(in {what})" if inside[i] else f"(outside {what})")
         # a narrow column (a tall view: a fall's strip) has no room for the title on one line
         frame = int(source_frames[i]) if source_frames is not None else i
         parts = [f"t = {t[i]:.2f} s", f"frame {frame}"] + ([where] if where else [])
@@ -415,7 +416,8 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
         if len(mended):
             ax.plot(t[mended], reading.measured[mended], "x", color="0.6", ms=5, label="off the path (not fitted)")
         ok = np.isfinite(reading.fitted)
-        ax.plot(t[ok], reading.fitted[ok], "-", lw=1.3, color="tab:orange", label="the equation's fitted trajectory")
+        # with its gaps (pieces: the frames of a bounce are on no trajectory), not a line across them
+        ax.plot(t, reading.fitted, "-", lw=1.3, color="tab:orange", label="the equation's fitted trajectory")
         _shade_stretch(ax, t, stretch if not pieces else None, train_frames)
         _mark_pieces(ax, t, pieces)
         for i in idx:
@@ -461,11 +463,14 @@ def _xy(points, n: int) -> np.ndarray:
     return xy
 
 
-def _in_stretch(stretch: Mapping[str, Any] | None, n: int) -> np.ndarray:
+def _in_stretch(stretch: Mapping[str, Any] | None, n: int, pieces: Mapping[str, Any] | None = None) -> np.ndarray:
+    """(n,) True for the frames fitted: the pieces' where there are pieces, else the stretch's."""
     inside = np.ones(n, dtype=bool)
-    if stretch:
+    spans = (pieces or {}).get("pieces") or ([(stretch["start_frame"], stretch["end_frame"])] if stretch else [])
+    if spans:
         inside[:] = False
-        inside[max(int(stretch["start_frame"]), 0): min(int(stretch["end_frame"]), n)] = True
+        for a, b in spans:
+            inside[max(int(a), 0): min(int(b), n)] = True
     return inside
 
 

@@ -110,6 +110,23 @@ def test_the_verdict_hears_the_held_out_quarter():
     assert _judged(None).verdict == "ambiguous"
 
 
+def test_a_held_out_quarter_that_moves_no_constant_out_of_its_interval_is_a_note():
+    # a reading's slow error (a tracked centre off by a tenth of a pixel, periodic with the swing)
+    # mispredicts the last quarter, yet the constants fitted without it stay inside their interval
+    from tests.test_assess import _analysis, _result, _run
+    for without, verdict in ((4.02, "trusted"), (4.3, "ambiguous")):
+        result = _result([_run(0, 4.0), _run(1, 4.01)])
+        result.parameters["k"].interval = (3.9, 4.11)  # about 4.005, +-2.6%
+        result.checks["interval"] = {"held_out": 3.9, "held_out_null": 1.5, "trajectory": {"k": 4.005},
+                                     "held_out_values": {"k": without}}
+        assessed = assess(result, _analysis())
+        assert assessed.verdicts["k"].verdict == verdict
+        if verdict == "trusted":
+            assert any("last quarter" in n and "inside the 95% interval" in n for n in assessed.notes)
+        else:
+            assert "last quarter" in assessed.verdicts["k"].reason
+
+
 def test_the_held_out_quarter_is_judged_against_what_its_resampled_residuals_reach():
     # residuals that hang together move a short fit's prediction by several times themselves: the
     # bootstrap's own paths, where the equation holds, say how far

@@ -62,6 +62,20 @@ def test_a_position_is_recorded_in_source_pixels_through_the_crop_and_the_resize
     assert np.abs(reading.points - centres).max() < 1.5
 
 
+def test_a_state_read_along_an_image_axis_is_drawn_over_time_in_its_pixels():
+    # y'' = -g reads y up the image: track.png's panel over time shows that height, and the fitted
+    # trajectory lands on the tracked point's column (it had no panel, so a ball's flights went unseen)
+    t = np.arange(40) / 30.0
+    track = np.stack([300 + 5 * t, 400 - 200 * t + 490 * t ** 2], axis=1)  # image rows grow down
+    m = {"states": {"y": "y"}, "track": track.tolist(), "space": "source"}
+    z = (-track[:, 1] - 12.0) * 0.01  # the latent: affine in the height
+    (reading,) = readings(m, z[:, None], z[:, None], ["y"])
+    np.testing.assert_allclose(reading.measured, -track[:, 1])
+    np.testing.assert_allclose(reading.fitted, -track[:, 1], atol=1e-9)
+    np.testing.assert_allclose(reading.points, track, atol=1e-9)
+    assert "up" in reading.label
+
+
 def test_a_size_is_recorded_with_its_radii_in_source_pixels(tmp_path):
     from fitode.train.observe import SizeObservation
     radii = np.linspace(10, 40, 50)

@@ -165,3 +165,53 @@ def test_track_png_shades_every_piece_and_marks_every_event():
     assert len(ax.patches) == len(pieces.spans) and f"the {len(pieces.spans)} pieces fitted together" in labels
     assert {"held until", "a bounce"} <= set(labels)
     assert len(ax.lines) == sum(e.kind != "release" for e in pieces.events)
+
+
+def test_a_ball_filmed_at_30_fps_keeps_its_short_flights_and_not_what_follows_them():
+    # flights of 20 down to 6 frames, a centroid blurred into the shadow for two frames before the
+    # first bounce (read from the neighbours, so unread), then the ball lies still and a hand picks
+    # it up: the flights pieces, the short ones too, the unread frames in none, the hand's lift no flight
+    from fitode.synth.scenes import _flights
+
+    dt, a = 1 / 30, 8829.0
+    t = np.arange(150) * dt - 0.5
+    y, _, times = _flights(900.0, 0.0, a, 0.75, 5, t)
+    y = y + 300 * np.clip(t - 3.3, 0, None) ** 2 + np.random.default_rng(6).normal(0, 0.3, len(t))
+    bounce = [(tb + 0.5) / dt for tb in times]  # in frames; the last is the landing
+    unread = np.zeros(len(t), dtype=bool)
+    unread[int(bounce[0]) - 2:int(bounce[0])] = True
+    y[unread] += 50.0
+    pieces = find_pieces(y[:, None], dt, parabola_fit(y), unread=unread)
+    spans = pieces.spans
+    assert len(spans) >= 4, pieces.describe(dt, n_frames=len(t))
+    for (a0, b0), lo, hi in zip(spans, [0.0] + bounce, bounce):  # each flight between its bounces
+        assert lo <= a0 and b0 <= hi + 1, (spans, bounce)
+    assert not any(a0 <= i < b0 for a0, b0 in spans for i in np.flatnonzero(unread))
+    assert spans[-1][1] <= bounce[-1] + 1  # the hand's lift is no piece
+    assert min(b0 - a0 for a0, b0 in spans) < 12  # shorter than a search's seed
+    joint = fit_pieces(parse("y'' = -a"), {}, y[:, None], dt, spans, {"a": 5000.0})
+    assert joint.values["a"] == pytest.approx(a, rel=0.01)
+
+
+def test_track_png_says_a_frame_between_two_pieces_is_outside_them():
+    from fitode.plots import _in_stretch
+
+    record = {"pieces": [[10, 20], [25, 40]]}
+    stretch = {"start_frame": 10, "end_frame": 20}  # the longest piece: frames of the others are fitted too
+    inside = _in_stretch(stretch, 50, record)
+    assert inside[10:20].all() and inside[25:40].all() and not inside[20:25].any() and not inside[40:].any()
+    assert _in_stretch(stretch, 50)[10:20].all() and not _in_stretch(stretch, 50)[25:40].any()
+
+
+def test_a_throw_is_released_at_its_launch_not_at_its_top():
+    # held still for 7 frames, then thrown up at 3.9 m/s (60 fps, 192 px/m): flat before the top
+    # looks like a release from rest, but only the launch is flat before and a parabola after
+    from fitode.train.pieces import release
+
+    dt = 1 / 60
+    t = np.arange(61) * dt - 7 * dt
+    y = 192 * np.where(t < 0, 0.0, 3.92 * t - 4.9 * t ** 2) + np.random.default_rng(3).normal(0, 0.1, len(t))
+    assert abs(release(y[:, None], 0, 20, 55, dt) - 7) <= 1
+    pieces = find_pieces(y[:, None], dt, parabola_fit(y))
+    assert abs(pieces.spans[0][0] - 7) <= 1 and pieces.spans[0][1] >= 58
+    assert pieces.describe(dt, n_frames=len(t)).startswith("held still until")  # not "moved by ... (a hand?)"

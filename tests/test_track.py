@@ -59,6 +59,24 @@ def test_strays_of_an_oscillation_are_mended_and_a_clean_swing_is_left_alone():
     assert mend_strays(clean)[1] == 0
 
 
+def test_a_ball_bouncing_at_30_fps_is_no_stray_and_a_hand_for_two_frames_is():
+    # a ball dropped from a hand, filmed at 30 fps: its path bends by g dt^2 (10 px) from frame to
+    # frame and turns round at the floor; the line through two frames misses the next by that
+    # much, so a real ball's first flight was read from its neighbours as a straight line
+    from fitode.synth.scenes import _flights
+    from fitode.train.observe import mend_strays
+
+    t = np.arange(150) / 30 - 1.0
+    y = 900 * _flights(1.0, 0.0, 9.81, 0.75, 5, t)[0] + np.random.default_rng(1).normal(0, 0.3, len(t))
+    mended, count = mend_strays(y)
+    assert count == 0 and np.array_equal(mended, y)
+    for k in (30, 50, 70):  # the centroid on a hand at the edge for two frames, at the top of a flight
+        bad = y.copy()
+        bad[[k, k + 1]] = [600.0, 602.0]
+        mended, count = mend_strays(bad)
+        assert count == 2 and np.abs(mended[[k, k + 1]] - y[[k, k + 1]]).max() < 15
+
+
 def test_a_named_axis_is_read_even_where_it_barely_moves_and_the_line_of_motion_is_suggested():
     t = np.arange(90) / 30
     bounce = np.column_stack([100 + 0.5 * np.sin(7 * t), 120 + 30 * np.cos(7 * t)])  # up and down, named x

@@ -126,3 +126,18 @@ def test_levenberg_marquardt_stops_at_its_bound_and_says_it_did_not_settle(monke
     assert fit.steps <= bound and fit.rollouts <= TRIALS_PER_STEP * bound
     # every rollout is the start, a step's Jacobian (one batched rollout), a trial, or the summary's few
     assert len(rollouts) <= 1 + fit.steps + fit.rollouts + 4
+
+
+def test_a_path_shorter_than_two_starting_contexts_is_one_trajectory():
+    # a ball's third flight filmed at 30 fps is 7 frames: one segment with no join to the next, which
+    # failed on the join's shape and dropped the flight
+    from fitode.train.trajectory import long_options
+
+    system = parse("y'' = -g", free=["g"])
+    rng = np.random.default_rng(2)
+    for n in (7, 8, 9):
+        t = np.arange(n) / 30
+        y = (1 + 2 * t - 4.905 * t ** 2)[:, None] + rng.normal(0, 2e-4, (n, 1))
+        fit = fit_trajectory(system, {}, y, 1 / 30, {"g": 5.0}, **long_options(n))
+        assert fit is not None and fit.values["g"] == pytest.approx(9.81, abs=4 * fit.errors["g"])
+        assert fit.errors["g"] < 0.5

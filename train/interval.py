@@ -126,6 +126,7 @@ class Bootstrap:
     residual_rms: list[float]  # per state, in the path's units
     held_out: float | None = None  # the held-out prediction's miss over the residuals there (_held_out)
     held_out_null: float | None = None  # ... the largest of it over HELD_OUT_REPLICAS resampled paths
+    held_out_values: dict[str, float] = field(default_factory=dict)  # the constants fitted without the quarter
     bend: dict[str, float] = field(default_factory=dict)  # the constants' RMS change under BEND-sized bends
     scaling: dict[str, float] = field(default_factory=dict)  # d constant / d log(the path's scale)
     geometry: dict[str, float] = field(default_factory=dict)  # the constants' std from the measurement's geometry (moves)
@@ -135,7 +136,8 @@ class Bootstrap:
                 "iterations": self.iterations, "kept": self.kept, "t_quantile": self.quantile,
                 "wall_s": self.wall_s, "trajectory": dict(self.values), "std": dict(self.std),
                 "dlog_dt": dict(self.timing), "misfit": self.misfit, "residual_rms": list(self.residual_rms),
-                "held_out": self.held_out, "held_out_null": self.held_out_null, "bend": dict(self.bend), "dlog_scale": dict(self.scaling),
+                "held_out": self.held_out, "held_out_null": self.held_out_null,
+                "held_out_values": dict(self.held_out_values), "bend": dict(self.bend), "dlog_scale": dict(self.scaling),
                 "geometry": dict(self.geometry)}
 
 
@@ -217,6 +219,15 @@ class _Batch:
         self.p = self.m + len(self.lengths) * self.nc * self.k
         self.weight = 1.0 / np.maximum(x.std(axis=0), 1e-24)  # every state counts equally, as fit_trajectory's
         self.state_weight = self.weight
+
+    def enough(self) -> bool:
+        """Enough frames for the refits: one trajectory twice as many beyond its starting frames as it
+        has numbers to fit; several pieces, whose starting frames are only read for a state, two
+        rolled-out frames per piece and per constant (three flights of a ball filmed at 30 fps are
+        28 frames, and 16 numbers with their starting frames)."""
+        if len(self.lengths) == 1:
+            return self.T >= self.nc + 2 * self.p
+        return self.T - len(self.lengths) * self.nc >= 2 * (self.m + len(self.lengths))
 
     def weigh_pieces(self, resid: np.ndarray) -> np.ndarray:
         """Weigh each piece by its own noise, from the residuals (T, k) of a fit: a flight read
@@ -376,7 +387,7 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
         # a refit that runs off overflows on its way to NaN, which is dropped below: not a warning
         with np.errstate(over="ignore", invalid="ignore"):
             batch = _Batch(system, params, x, dt, integrator, substeps, pieces)
-            if batch.T < batch.nc + 2 * batch.p:
+            if not batch.enough():
                 return None
             theta0 = np.concatenate([[float(values[n]) for n in batch.names], batch.starts(x)])[None]
             centre = batch.gauss_newton(theta0, x[None], CENTRE_ITERATIONS)
@@ -400,9 +411,9 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
                 return None
             stretched = batch.gauss_newton(centre, batch.roll(centre, dt * (1 + TIME_STEP)), refit_iterations)
             scaled = batch.chord(centre, fitted[None] * (1 + SCALE_STEP), refit_iterations)
-            held_out, held_null = _held_out(system, params, x, dt, centre, integrator, substeps,
-                                            targets[:HELD_OUT_REPLICAS]) \
-                if len(batch.lengths) == 1 else (None, None)
+            held_out, held_null, without = _held_out(system, params, x, dt, centre, integrator, substeps,
+                                                     targets[:HELD_OUT_REPLICAS]) \
+                if len(batch.lengths) == 1 else (None, None, None)
             bend = bends(batch, centre, fitted, refit_iterations) if learned else {}
             moved = batch.chord(centre, fitted[None] + np.stack(moves), refit_iterations) if moves else None
     except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError, FitodeError):
@@ -424,7 +435,9 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
                      wall_s=time.perf_counter() - began,
                      misfit=float(np.sqrt(np.mean((resid * batch.state_weight) ** 2))),
                      residual_rms=[float(v) for v in np.sqrt(np.mean(resid ** 2, axis=0))],
-                     held_out=held_out, held_out_null=held_null, bend=bend, scaling=scaling, geometry=geometry)
+                     held_out=held_out, held_out_null=held_null,
+                     held_out_values={n: float(without[i]) for i, n in enumerate(names)} if without is not None else {},
+                     bend=bend, scaling=scaling, geometry=geometry)
 
 
 def bends(batch: _Batch, centre: np.ndarray, fitted: np.ndarray, iterations: int) -> dict[str, float]:
@@ -454,11 +467,12 @@ def _held_out(system, params: Mapping, x: np.ndarray, dt: float, centre: np.ndar
     resampled in blocks, which the equation explains by construction. Residuals that hang together
     over many frames (a tracker's slow error, 4 times the frame-to-frame noise on a released swing)
     move a short fit's prediction by several times themselves: that is the size the ratio reaches
-    without any fault of the equation (None without replicas)."""
+    without any fault of the equation (None without replicas); and the constants fitted without the
+    last part (m,) (None where that fit failed)."""
     n_fit = int(round(len(x) * (1 - HELD_OUT)))
     part = _Batch(system, params, x[:n_fit], dt, integrator, substeps)
     if n_fit < part.nc + 2 * part.p:
-        return None, None
+        return None, None, None
     paths = x[None] if replicas is None or not len(replicas) else np.concatenate([x[None], replicas])
     theta = part.gauss_newton(np.repeat(centre, len(paths), axis=0), paths[:, :n_fit], CENTRE_ITERATIONS // 2)
     whole = _Batch(system, params, x, dt, integrator, substeps)
@@ -470,8 +484,9 @@ def _held_out(system, params: Mapping, x: np.ndarray, dt: float, centre: np.ndar
     ok = np.all(np.isfinite(theta), axis=1) & np.isfinite(num) & (den > 0)
     ratio = np.where(ok, num / np.where(den > 0, den, 1.0), np.nan)
     null = ratio[1:][np.isfinite(ratio[1:])]
-    return (float(ratio[0]) if ok[0] else None), (float(null.max()) if len(null) >= len(paths[1:]) // 2 and len(null)
-                                                  else None)
+    return ((float(ratio[0]) if ok[0] else None),
+            (float(null.max()) if len(null) >= len(paths[1:]) // 2 and len(null) else None),
+            (theta[0, :part.m] if ok[0] else None))
 
 
 def combine(value: float, boot: Bootstrap | None, name: str, *, rate_std: float = 0.0, relative: float = 0.0,

@@ -28,15 +28,16 @@ from typing import Callable
 
 import numpy as np
 
-from .stretch import BREAK, MIN_SEED, TOL, at_rest, find_stretch, noise_level
+from .stretch import BREAK, MIN_SEED, REST_SIGMAS, TOL, at_rest, find_stretch, noise_level
 
 JUMP = 6.0        # an impact: the velocities either side of a frame differ by this many times their noise
 MOVING = 2.0      # ... and turn round, at least this many times that noise fast either side
 RELEASE_S = 0.15  # seconds either side of a release its parabola from rest is fitted over
 RELEASE_SPAN = 4  # ... searched this many of those either side of where the piece was found to start
+RELEASE_MIN = 3   # ... with at least this many frames of the hold before it
 HOLD_SHARE = 0.03  # a first or last piece that travels less than this share of the longest is a hold or a stop
 SIDE_S = 0.12     # seconds each side a velocity is read from, SIDE_FRAMES frames at least and at most
-SIDE_FRAMES = (5, 12)
+SIDE_FRAMES = (3, 12)
 GAP = 1           # ... leaving out this many at the frame: the impact falls between two frames
 KINK = 4.0        # ... and no smooth motion runs through the frames around it: a quartic across both
 #                   sides misses them by this many times the noise (a swing's turning point, read
@@ -49,6 +50,10 @@ SPLIT_GAIN = 4.0  # a piece one trajectory misses by BREAK times the noise is sp
 #                   the velocity (impacts' threshold halved, no smooth-motion guard: a slow last bounce)
 #                   where one trajectory each side misses it by this many times less
 SPLITS = 3        # ... at most this many times over
+SHORT = 6      # a stretch between two impacts this many frames long, one trajectory explaining it whole, is a
+#                piece though shorter than a seed (a ball's third flight filmed at 30 fps is 7 frames)
+LOST_GAP = 1.0  # pieces apart by more than this many velocity windows that no impact explains are two
+#                 motions (a ball that rolls away and is picked up): the one that travels farther is kept
 JOIN = 2.0     # two neighbours are one trajectory where it misses their union by at most this many times
 #                their own misfits (or the noise)
 
@@ -123,7 +128,7 @@ def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tu
     starts from rest and a swing's turning point is as slow either side); the local largest of such
     frames, with the GAP frames either side, is the impact."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
-    SIDE = int(np.clip(round(SIDE_S / dt), *SIDE_FRAMES))
+    SIDE = _side(dt)
     score = _jumps(x, noise, lo, hi, SIDE, JUMP, guard=True)
     out: list[tuple[int, int]] = []
     for i in np.flatnonzero(score > 0):
@@ -192,9 +197,11 @@ def _slope_weights(t: np.ndarray) -> np.ndarray:
 
 
 def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray | None], *,
-                min_len: int = MIN_SEED) -> Pieces:
+                min_len: int = MIN_SEED, unread: np.ndarray | None = None) -> Pieces:
     """Every stretch of the path x (T, k) that one trajectory explains (see the module docstring).
-    fit(a, b): the residual of one trajectory fitted to frames [a, b), or None, as find_stretch's."""
+    fit(a, b): the residual of one trajectory fitted to frames [a, b), or None, as find_stretch's.
+    unread: True for the frames the reader did not see the object in (read from their neighbours):
+    those next to an impact belong to it, not to a piece."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     T = len(x)
     noise_all = noise_level(x)
@@ -205,6 +212,8 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
     lo, hi = int(moving[0]), int(moving[-1]) + 1
     noise = noise_level(x[lo:hi]) if hi - lo >= 8 else noise_all
     cuts = impacts(x, noise, lo, hi, dt)
+    if unread is not None:
+        cuts = _widened(cuts, np.asarray(unread, dtype=bool)[:T])
     if cuts:
         # a velocity that turns round is no impact where one trajectory explains every frame that
         # moves: a swing sampled coarsely (the paper's motion video, 16 frames a period) turns round
@@ -222,6 +231,7 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
         spans.extend(found)
     cuts.sort()
     spans = _joined(spans, fit, noise)
+    spans = _one_motion(x, spans, cuts, _side(dt))
     if len(spans) > 1:
         # a hand that holds the thing, or a thing come to rest, follows a trajectory of its own that
         # goes nowhere (a pendulum 700 m long): it is no piece of the motion
@@ -236,12 +246,16 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
         a, b = spans[0]
         opening = int(np.argmin(rest)) if rest[0] else 0  # the first frame after the clip's opening rest
         r = release(x, 0, max(a, opening), b, dt)
-        if r is not None and b - r >= min_len:
+        if r is not None and b - r >= min(min_len, SHORT) and (b - r >= min_len or _fits(fit, r, b, noise)):
             spans[0] = (r, b)
     if spans:
         first = spans[0][0]
         if first > 0:
-            still = rest[:first].mean() > 0.5
+            # still: at rest over most of what came before, or, a hold shorter than a rest's window
+            # (a throw held 7 frames at 60 fps), flat over the frames the release was read from
+            held = x[max(first - _release_window(dt), 0):first]
+            still = rest[:first].mean() > 0.5 or (
+                len(held) >= RELEASE_MIN and float(np.ptp(held, axis=0).max()) <= REST_SIGMAS * noise_all)
             events.append(Event(first, "hold" if still else "moved"))
             events.append(Event(first, "release"))
         for (_, b), (a, _) in zip(spans, spans[1:]):
@@ -260,14 +274,15 @@ def _parts(x: np.ndarray, a: int, b: int, dt: float, fit, noise: float, min_len:
     a cart's last, short flights turn round gently), [a, b) split at its strongest turn of the
     velocity, if one trajectory each side misses by SPLIT_GAIN times less, and each side searched."""
     if b - a < min_len:
-        return []
+        # too short to search, but a flight between two bounces that one trajectory explains whole
+        return [(a, b)] if b - a >= SHORT and _fits(fit, a, b, noise) else []
     part = find_stretch(x[a:b], dt, lambda i, j: fit(a + i, a + j), min_len=min_len, search=True)
     s, e = a + part.start, a + part.end
     whole = _rms(fit(s, e)) if e - s >= min_len else None
     if whole is None:
         return []
     if splits > 0 and whole > BREAK * noise:
-        side = int(np.clip(round(SIDE_S / dt), *SIDE_FRAMES))
+        side = _side(dt)
         score = _jumps(x, noise, a, b, side, JUMP / 2, guard=False)
         i = int(np.argmax(score))
         if score[i] > 0:
@@ -282,27 +297,86 @@ def _parts(x: np.ndarray, a: int, b: int, dt: float, fit, noise: float, min_len:
 
 def release(x: np.ndarray, lo: int, a: int, b: int, dt: float) -> int | None:
     """The frame a thing held still until then is let go, near the start a of the piece [a, b)
-    (no earlier than lo): where the path, flat before, leaves its place as a parabola from rest
-    (x = c before, c + q (t - r)^2 after: any equation's motion from rest, over a short time),
-    fitted over RELEASE_S seconds either side of every candidate frame r; the r where it leaves the
-    least share of the window's spread unexplained. None where
+    (no earlier than lo): where the path, flat before, leaves its place as a parabola (x = c
+    before, c + v (t - r) + q (t - r)^2 after: any equation's motion over a short time, from rest
+    where a hand lets go, with a speed where it throws), fitted over RELEASE_S seconds either side
+    of every candidate frame r (fewer before it where the clip starts sooner, RELEASE_MIN at
+    least); the r where it leaves the least share of the window's spread unexplained. None where
     the path (its column of largest range) has too few frames around a."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     column = x[:, int(np.argmax(np.ptp(x[a:b], axis=0)))]
-    w = int(np.clip(round(RELEASE_S / dt), 4, 40))
-    first, last = max(lo + w, a - RELEASE_SPAN * w), min(b - w, a + RELEASE_SPAN * w)
+    w = _release_window(dt)
+    first, last = max(lo + RELEASE_MIN, a - RELEASE_SPAN * w), min(b - w, a + RELEASE_SPAN * w)
     best, where = math.inf, None
     for r in range(first, last + 1):
-        y = column[r - w:r + w]
-        s = np.arange(-w, w, dtype=np.float64) + 0.5  # the release between frames r - 1 and r
-        basis = np.stack([np.ones(2 * w), np.where(s > 0, s * s, 0.0)], axis=1)
+        before = min(w, r - lo)
+        y = column[r - before:r + w]
+        s = np.arange(-before, w, dtype=np.float64) + 0.5  # the release between frames r - 1 and r
+        after = s > 0
+        basis = np.stack([np.ones(len(s)), np.where(after, s, 0.0), np.where(after, s * s, 0.0)], axis=1)
         coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
         # the share of the window's spread left unexplained: a hand's small wander fits a flat line and
-        # a parabola poorly, the release of a swing's pull almost exactly
+        # a parabola poorly, the release of a swing's pull almost exactly; a throw's top is no
+        # release, its path before it is no flat line (a release from rest alone took a 60 fps
+        # throw's top for its launch, and fitted half its flight)
         sse = float(np.sum((basis @ coef - y) ** 2)) / max(float(np.sum((y - y.mean()) ** 2)), 1e-300)
         if sse < best:
             best, where = sse, r
     return where
+
+
+def _widened(cuts: list[tuple[int, int]], unread: np.ndarray) -> list[tuple[int, int]]:
+    """Each impact's frames grown over the unread frames next to it: a ball that meets the floor
+    blurs into its shadow in the last frames before the bounce (a real ball's centroid was 60 px off
+    in two of them), and those frames, read from their neighbours across the corner, lie on neither
+    flight."""
+    out: list[tuple[int, int]] = []
+    for a, b in cuts:
+        while a > 0 and unread[a - 1]:
+            a -= 1
+        while b < len(unread) and unread[b]:
+            b += 1
+        if out and a <= out[-1][1]:
+            out[-1] = (out[-1][0], b)
+        else:
+            out.append((a, b))
+    return out
+
+
+def _release_window(dt: float) -> int:
+    """The frames each side of a release its parabola is fitted over (RELEASE_S, 4 to 40)."""
+    return int(np.clip(round(RELEASE_S / dt), 4, 40))
+
+
+def _side(dt: float) -> int:
+    """The frames each side a velocity is read from (SIDE_S, within SIDE_FRAMES)."""
+    return int(np.clip(round(SIDE_S / dt), *SIDE_FRAMES))
+
+
+def _fits(fit, a: int, b: int, noise: float) -> bool:
+    whole = _rms(fit(a, b))
+    return whole is not None and whole <= TOL * noise
+
+
+def _one_motion(x: np.ndarray, spans: list[tuple[int, int]], cuts: list[tuple[int, int]],
+                side: int) -> list[tuple[int, int]]:
+    """The run of pieces that travels farthest, where two neighbours apart by more than LOST_GAP
+    velocity windows with no impact between them end one run: what the tracker follows after the
+    motion was lost for that long (a ball rolled away, then a person who picks it up) is no flight."""
+    runs: list[list[tuple[int, int]]] = []
+    for span in spans:
+        if runs:
+            between = np.ones(max(span[0] - runs[-1][-1][1], 0), dtype=bool)
+            for c0, c1 in cuts:  # the frames of the gap that no impact explains
+                between[max(c0 - runs[-1][-1][1], 0):max(c1 - runs[-1][-1][1], 0)] = False
+            if between.sum() <= LOST_GAP * (2 * side + 1):
+                runs[-1].append(span)
+                continue
+        runs.append([span])
+    if len(runs) <= 1:
+        return spans
+    travel = [sum(float(np.ptp(x[a:b], axis=0).max()) for a, b in run) for run in runs]
+    return runs[int(np.argmax(travel))]
 
 
 def _joined(spans: list[tuple[int, int]], fit, noise: float) -> list[tuple[int, int]]:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Callable, Mapping
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 import torch
@@ -292,7 +292,7 @@ def _measured_fit(prepared, plan: FitPlan, gauges, stretch: tuple[int, int] | No
     options = {"integrator": config.integrator, "substeps": config.substeps}
     pieces = None
     if stretch is None:
-        stretch, record, pieces = _stretch(latent, plan, gauges)
+        stretch, record, pieces = _stretch(latent, plan, gauges, prepared.mended or ())
     else:
         record = None
     first, last = stretch
@@ -387,9 +387,11 @@ def _joint(fit, pieces, plan: FitPlan, meta: dict) -> None:
         scatter=joint.scatter)
 
 
-def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int], dict | None, Pieces | None]:
+def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
+             mended: Sequence[int] = ()) -> tuple[tuple[int, int], dict | None, Pieces | None]:
     """The stretch of the training frames the runs fit and its record (contract: meta["stretch"]);
-    with pieces, the pieces (train/pieces.py) and the stretch is the longest of them."""
+    with pieces, the pieces (train/pieces.py) and the stretch is the longest of them. mended: the
+    frames the reader read from their neighbours."""
     n = plan.n_train
     if not plan.config.stretch or n < 3 * MIN_SEED:
         return (0, n), None, None
@@ -419,7 +421,9 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges) -> tuple[tuple[int, int]
         if config.pieces == "one":
             found = find_stretch(latent[:n], plan.dt, fit)
         else:
-            pieces = find_pieces(latent[:n], plan.dt, fit)
+            unread = np.zeros(n, dtype=bool)
+            unread[[i for i in mended if i < n]] = True
+            pieces = find_pieces(latent[:n], plan.dt, fit, unread=unread)
             found = _longest(latent[:n], pieces, plan.dt) if pieces.spans else find_stretch(latent[:n], plan.dt, fit)
             if not pieces.spans:
                 pieces = None

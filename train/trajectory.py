@@ -284,6 +284,8 @@ class _Problem:
         # a rollout starts from is read from its starting frames by finite differences (a derivative
         # off by (omega dt)^2 / 6), so starting frames tied to the frames before made each segment
         # another trajectory (the paper's motion video: g1 0.067% low on an exact path)
+        if start.shape[1] == 1:  # one segment, no join (a path shorter than two contexts has no frames past them)
+            return state[:, self.seg, self.off], state[:, :0, :nc]
         return state[:, self.seg, self.off], state[:, :-1, step + nc:step + 2 * nc] - state[:, 1:, nc:2 * nc]
 
     def pieces_residual(self, swapped, start=None, constants: dict | None = None):

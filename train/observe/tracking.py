@@ -216,6 +216,13 @@ def _strongest_region(heat: torch.Tensor) -> torch.Tensor:
 
 STRAY_SPAN = 2  # neighbours on each side whose local parabola a frame of a turning path is checked against
 ROUNDS = 5
+LOCAL_SPAN = 7  # frames on each side whose misses set a frame's own noise (mend_strays)
+
+
+def _running_median(x: np.ndarray, half: int) -> np.ndarray:
+    """The median of x (T,) over the 2 half + 1 frames around each frame (fewer at the ends)."""
+    padded = np.concatenate([np.full(half, np.nan), x, np.full(half, np.nan)])
+    return np.nanmedian(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1), axis=1)
 
 
 def mend_strays(xy: np.ndarray, n_fit: int | None = None) -> tuple[np.ndarray, int]:
@@ -226,8 +233,11 @@ def mend_strays(xy: np.ndarray, n_fit: int | None = None) -> tuple[np.ndarray, i
     (itself left out; at the ends, the nearest such frames, its miss then scaled down by the
     larger noise of an extrapolation), fitted per coordinate: a swing is smooth over a few frames
     and a bounce lies on a line with the frames on one side of it, a centroid that jumped to
-    something else for a frame or two does neither. Far means more than MEND_SIGMAS times the misses' robust spread over the first
-    n_fit frames and more than MEND_PIXELS. A stray also pulls its neighbours' parabolas, so the
+    something else for a frame or two does neither. Far means more than MEND_SIGMAS times the misses' robust spread, both over the first
+    n_fit frames and over the 2 LOCAL_SPAN + 1 frames around the frame, and more than MEND_PIXELS: a
+    ball's centroid is blurred and clipped while it falls fast, so its misses there are many times
+    those of the frames where it is held or rests, yet it is the ball (a real dropped ball's whole
+    first flight was read from its neighbours as a straight line). A stray also pulls its neighbours' parabolas, so the
     first round takes only the frames that miss most among their neighbours, and later rounds
     check every frame against the path so mended (up to ROUNDS, until nothing changes)."""
     x = np.asarray(xy, dtype=np.float64)
@@ -252,23 +262,28 @@ def mend_strays(xy: np.ndarray, n_fit: int | None = None) -> tuple[np.ndarray, i
     mended, off, first = x, np.zeros(n, dtype=bool), None
     threshold = None
     # a bounce is a kink, not a stray: every frame near it lies on the line through the two frames
-    # before it (and so does the frame before it), or through the two after it, where a centroid
-    # that jumped to something else for a frame or a few lies on neither (a ball's bounces were
-    # read from their neighbours)
+    # before it (and so does the frame before it), or on the parabola through the three before it
+    # (a fall filmed at 30 fps bends by g dt^2, several pixels, from frame to frame), or on either
+    # through those after it, where a centroid that jumped to something else for a frame or a few
+    # lies on none (a ball's bounces were read from their neighbours)
     left, right = np.full(n, np.inf), np.full(n, np.inf)
     left[2:] = np.linalg.norm(x[2:] - (2 * x[1:-1] - x[:-2]), axis=1) / np.sqrt(6.0)  # a line's extrapolation
     right[:-2] = np.linalg.norm(x[:-2] - (2 * x[1:-1] - x[2:]), axis=1) / np.sqrt(6.0)
+    left[3:] = np.minimum(left[3:], np.linalg.norm(x[3:] - (3 * x[2:-1] - 3 * x[1:-2] + x[:-3]), axis=1) / np.sqrt(20.0))
+    right[:-3] = np.minimum(right[:-3], np.linalg.norm(x[:-3] - (3 * x[1:-2] - 3 * x[2:-1] + x[3:]), axis=1) / np.sqrt(20.0))
     for _ in range(ROUNDS):
         predicted = np.einsum("tw,twk->tk", filters[place], mended[index])
         miss = np.linalg.norm(x - predicted, axis=1) / gain
         if threshold is None:
-            threshold = max(MEND_SIGMAS * 1.4826 * float(np.median(miss[:n_fit])), MEND_PIXELS / gain.min())
+            threshold = np.full(n, max(MEND_SIGMAS * 1.4826 * float(np.median(miss[:n_fit])), MEND_PIXELS / gain.min()))
         line = np.zeros(n, dtype=bool)
-        line[1:] |= (left[1:] <= threshold) & (left[:-1] <= threshold)
-        line[:-1] |= (right[:-1] <= threshold) & (right[1:] <= threshold)
+        line[1:] |= (left[1:] <= threshold[1:]) & (left[:-1] <= threshold[:-1])
+        line[:-1] |= (right[:-1] <= threshold[:-1]) & (right[1:] <= threshold[1:])
         far = (miss > threshold) & ~line
         if first is None:
-            padded = np.concatenate([np.zeros(h), miss, np.zeros(h)])
+            # (among the far frames: a frame that lies on its side's curve is no candidate, however a
+            # stray next to it pulls its parabola)
+            padded = np.concatenate([np.zeros(h), miss * far, np.zeros(h)])
             first = far & (miss >= np.lib.stride_tricks.sliding_window_view(padded, 2 * h + 1).max(axis=1))
             now = first
         else:  # a neighbour a stray's parabola pulled is let go once the stray is mended
