@@ -13,6 +13,8 @@ floor, is sub-pixel (within a quarter of a pixel for a ball two pixels across). 
 opened (eroded, then dilated, by 3x3) where that leaves anything: a pendulum's string is thin and
 often more contrasted than its bob, and pulls the centroid towards the pivot by a varying amount. The region is found on the change shrunk by LOCATE (cheap)
 and measured at full resolution inside it.
+Where the strongest change is a band of water between a water line and its place in the static
+scene, the track is the line itself (fitode.video.waterline), not the band's centroid.
 
 The frames are kept at the source's resolution unless the clip would take more than TRACK_BYTES
 so; then they are shrunk by the smallest whole factor that fits, and the track says so.

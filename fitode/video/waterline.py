@@ -3,9 +3,9 @@ an object.
 
 As a tank drains, what differs from the static scene (the clip's median frame) is the band of
 rows between the line now and its place in the median frame: one end of the band stays at that
-place, the other is the line. The band's centroid moves half as far as the line does (the
-shared draining bottle: 76 pixels while its red water's top edge drops 156), and vanishes where
-the line passes its median place. So where the change detector's path is such a band, the
+place, the other is the line. The band's centroid moves half as far as the line does (on the
+shared draining bottle, the reader's centroid against the colour tracker's water top of
+bench/realclips.py: slope 0.50), and vanishes where the line passes its median place. So where the change detector's path is such a band, the
 reading is the band's moving end instead.
 
 The tank's columns (those around the detector's path whose change stands above the noise) are
@@ -17,8 +17,9 @@ the outermost place where the change crosses half the band's step (its plateau j
 end): a blurred step crosses half its height at the edge itself, and a meniscus or the far rim
 of the surface, seen from a little above, belongs to the water when it changes by that much.
 
-A frame whose band does not reach the median place (the line is at it, or something else changed
-more) is left unread (NaN); the reading fills it from its neighbours.
+A frame whose band shows no end away from the median place (the line at it, or something else
+changing more) is read from the nearest frame read so by the shift of the tank's rows between
+them.
 """
 from __future__ import annotations
 
