@@ -68,6 +68,7 @@ def test_a_linear_pendulum_on_a_large_swing_does_not_hold_where_it_is_right_on_a
     config = TrainConfig()
     finding, numbers = whole_clip_check(linear, {}, _swing(50), 1 / 30, {"L": 0.5, "zeta": 0.3}, config)
     assert finding is not None and "does not hold over the whole clip" in finding.reason, numbers
+    assert "L" in finding.names  # the constants whose halves disagree, each
     first, _, second, _ = numbers["L"]
     assert 0.02 < abs(first / second - 1) < 0.05  # the case the 5% tolerance let through
     assert whole_clip_check(linear, {}, _swing(4), 1 / 30, {"L": 0.5, "zeta": 0.3}, config)[0] is None

@@ -215,3 +215,7 @@ def test_a_throw_is_released_at_its_launch_not_at_its_top():
     pieces = find_pieces(y[:, None], dt, parabola_fit(y))
     assert abs(pieces.spans[0][0] - 7) <= 1 and pieces.spans[0][1] >= 58
     assert pieces.describe(dt, n_frames=len(t)).startswith("held still until")  # not "moved by ... (a hand?)"
+    # landed, and lying there for the clip's last 6 frames: it comes to rest, it is not lost
+    landed = np.concatenate([y[:55], np.full(6, y[54]) + np.random.default_rng(4).normal(0, 0.1, 6)])
+    pieces = find_pieces(landed[:, None], dt, parabola_fit(landed))
+    assert "comes to rest at" in pieces.describe(dt, n_frames=len(t)), pieces.describe(dt, n_frames=len(t))

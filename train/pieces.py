@@ -253,9 +253,7 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
         if first > 0:
             # still: at rest over most of what came before, or, a hold shorter than a rest's window
             # (a throw held 7 frames at 60 fps), flat over the frames the release was read from
-            held = x[max(first - _release_window(dt), 0):first]
-            still = rest[:first].mean() > 0.5 or (
-                len(held) >= RELEASE_MIN and float(np.ptp(held, axis=0).max()) <= REST_SIGMAS * noise_all)
+            still = rest[:first].mean() > 0.5 or _flat(x[max(first - _release_window(dt), 0):first], noise_all)
             events.append(Event(first, "hold" if still else "moved"))
             events.append(Event(first, "release"))
         for (_, b), (a, _) in zip(spans, spans[1:]):
@@ -263,7 +261,9 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
             events.append(Event((hit[0] + hit[1]) // 2 if hit else a, "bounce" if hit else "lost"))
         last = spans[-1][1]
         if last < T:
-            events.append(Event(last, "stop" if rest[last:].mean() > 0.5 else "lost"))
+            # (a landing whose rest the clip ends too soon to show, 6 frames at 60 fps, is a stop)
+            stop = rest[last:].mean() > 0.5 or (T - last <= _release_window(dt) and _flat(x[last:], noise_all))
+            events.append(Event(last, "stop" if stop else "lost"))
     return Pieces(spans, events, noise)
 
 
@@ -341,6 +341,11 @@ def _widened(cuts: list[tuple[int, int]], unread: np.ndarray) -> list[tuple[int,
         else:
             out.append((a, b))
     return out
+
+
+def _flat(frames: np.ndarray, noise: float) -> bool:
+    """At least RELEASE_MIN frames that stay within REST_SIGMAS noise spreads."""
+    return len(frames) >= RELEASE_MIN and float(np.ptp(frames, axis=0).max()) <= REST_SIGMAS * noise
 
 
 def _release_window(dt: float) -> int:
