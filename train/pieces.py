@@ -35,6 +35,7 @@ MOVING = 2.0      # ... and turn round, at least this many times that noise fast
 RELEASE_S = 0.15  # seconds either side of a release its parabola from rest is fitted over
 RELEASE_SPAN = 4  # ... searched this many of those either side of where the piece was found to start
 RELEASE_MIN = 3   # ... with at least this many frames of the hold before it
+THROWN = 4.0      # ... and thrown (a speed of its own) where that leaves this many times less unexplained
 HOLD_SHARE = 0.03  # a first or last piece that travels less than this share of the longest is a hold or a stop
 SIDE_S = 0.12     # seconds each side a velocity is read from, SIDE_FRAMES frames at least and at most
 SIDE_FRAMES = (3, 12)
@@ -297,32 +298,37 @@ def _parts(x: np.ndarray, a: int, b: int, dt: float, fit, noise: float, min_len:
 
 def release(x: np.ndarray, lo: int, a: int, b: int, dt: float) -> int | None:
     """The frame a thing held still until then is let go, near the start a of the piece [a, b)
-    (no earlier than lo): where the path, flat before, leaves its place as a parabola (x = c
-    before, c + v (t - r) + q (t - r)^2 after: any equation's motion over a short time, from rest
-    where a hand lets go, with a speed where it throws), fitted over RELEASE_S seconds either side
-    of every candidate frame r (fewer before it where the clip starts sooner, RELEASE_MIN at
-    least); the r where it leaves the least share of the window's spread unexplained. None where
-    the path (its column of largest range) has too few frames around a."""
+    (no earlier than lo): where the path, flat before, leaves its place as a parabola from rest
+    (x = c before, c + q (t - r)^2 after: any equation's motion from rest, over a short time), or,
+    where that fits THROWN times worse than with a speed of its own (c + v (t - r) + q (t - r)^2:
+    a hand that throws), as that; fitted over RELEASE_S seconds either side of every candidate
+    frame r (fewer before it where the clip starts sooner, RELEASE_MIN at least); the r where it
+    leaves the least share of the window's spread unexplained. None where the path (its column
+    of largest range) has too few frames around a."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     column = x[:, int(np.argmax(np.ptp(x[a:b], axis=0)))]
     w = _release_window(dt)
     first, last = max(lo + RELEASE_MIN, a - RELEASE_SPAN * w), min(b - w, a + RELEASE_SPAN * w)
-    best, where = math.inf, None
+    best = {False: (math.inf, None), True: (math.inf, None)}  # thrown: (share unexplained, frame)
     for r in range(first, last + 1):
         before = min(w, r - lo)
         y = column[r - before:r + w]
         s = np.arange(-before, w, dtype=np.float64) + 0.5  # the release between frames r - 1 and r
         after = s > 0
-        basis = np.stack([np.ones(len(s)), np.where(after, s, 0.0), np.where(after, s * s, 0.0)], axis=1)
-        coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
-        # the share of the window's spread left unexplained: a hand's small wander fits a flat line and
-        # a parabola poorly, the release of a swing's pull almost exactly; a throw's top is no
-        # release, its path before it is no flat line (a release from rest alone took a 60 fps
-        # throw's top for its launch, and fitted half its flight)
-        sse = float(np.sum((basis @ coef - y) ** 2)) / max(float(np.sum((y - y.mean()) ** 2)), 1e-300)
-        if sse < best:
-            best, where = sse, r
-    return where
+        spread = max(float(np.sum((y - y.mean()) ** 2)), 1e-300)
+        for thrown in (False, True):
+            terms = [np.ones(len(s))] + ([np.where(after, s, 0.0)] if thrown else []) + [np.where(after, s * s, 0.0)]
+            basis = np.stack(terms, axis=1)
+            coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+            # the share of the window's spread left unexplained: a hand's small wander fits a flat
+            # line and a parabola poorly, the release of a swing's pull almost exactly
+            sse = float(np.sum((basis @ coef - y) ** 2)) / spread
+            if sse < best[thrown][0]:
+                best[thrown] = (sse, r)
+    # a throw's top is flat before and a parabola from rest after too, nearly: a 60 fps throw held
+    # 7 frames was released at its top and fitted over half its flight; the speed is taken only
+    # where it explains far more (a slide from rest was released a frame late with it)
+    return best[True][1] if best[True][0] * THROWN < best[False][0] else best[False][1]
 
 
 def _widened(cuts: list[tuple[int, int]], unread: np.ndarray) -> list[tuple[int, int]]:
