@@ -62,6 +62,9 @@ Draining bottle (draining_bottle_hole7mm.mp4, 29.97 fps)
     millimetres are a meniscus), sqrt(h) = sqrt(h0) - k t / 2 is fitted (straight line in
     sqrt(h)) with h = bottom row - level row in pixels, then in cm with 16.5 cm / (bottom - rim),
     and in sqrt(m)/s (the unit of fitode's torricelli k) as k_cm / 10.
+    With --fitode, how far fitode's reading moves (its track.csv's rows, source pixels) against
+    this water top on the frames both read is printed under the table: each one's travel and
+    their ratio (a reading of the band of change's centroid moves about half as far).
 
 Bouncing ball (bouncing_ball.avi, 29.97 fps)
     Track: the green ball's centroid, frames 63-117. The first flight after the release is cut at
@@ -528,11 +531,38 @@ def run_fitode(path: Path, clip: Clip, m: dict[str, Any], out_dir: Path, timeout
     except ValueError:
         rec["error"] = (p.stderr.strip().splitlines() or ["no output"])[-1]
         return rec
+    if clip.kind == "bottle":
+        rec["travel"] = reading_travel(run_dir / "track.csv", m["levels"])
     par = (result.get("parameters") or {}).get(clip.fitode_param) or {}
     rec.update({"value": par.get("value"), "std": par.get("std"), "interval": par.get("interval"), "unit": par.get("unit"),
                 "calibrated": par.get("calibrated"), "status": result.get("status"), "verdict": par.get("verdict"),
                 "warnings": result.get("warnings", [])})
     return rec
+
+
+def reading_travel(track_csv: Path, levels: np.ndarray) -> dict[str, Any] | None:
+    """How far fitode's reading (track.csv's y_px, source pixels) moves against the colour
+    tracker's water top (levels, per source frame) on the frames both read: each one's travel
+    (largest minus smallest row), their ratio, and the slope of fitode's rows on the tracker's."""
+    import csv
+
+    if not track_csv.exists():
+        return None
+    with open(track_csv) as f:
+        rows = [(int(r["frame"]), float(r["y_px"])) for r in csv.DictReader(f) if r.get("y_px")]
+    if not rows:
+        return None
+    frames, y = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
+    inside = frames < len(levels)
+    frames, y = frames[inside], y[inside]
+    top = levels[frames]
+    both = np.isfinite(top) & np.isfinite(y)
+    if both.sum() < 3:
+        return None
+    fitode_px, tracker_px = float(np.ptp(y[both])), float(np.ptp(top[both]))
+    return {"frames": int(both.sum()), "fitode_px": fitode_px, "tracker_px": tracker_px,
+            "ratio": fitode_px / tracker_px if tracker_px else math.nan,
+            "slope": float(np.polyfit(top[both], y[both], 1)[0])}
 
 
 # ----------------------------------------------------------------------------- check images
@@ -661,6 +691,12 @@ def run(args: argparse.Namespace) -> int:
     print(bc.format_table(table, [("clip", "clip"), ("quantity", "quantity"), ("tracker", "tracker"),
                                   ("SOURCES.md", "stated"), ("fitode", "fitode")],
                           title="real clips: colour tracker + curve fit (errors: fit standard errors)"))
+    for name, rec in results.items():
+        travel = (rec.get("fitode") or {}).get("travel")
+        if travel:
+            print(f"{name}: fitode's reading travels {travel['fitode_px']:.1f} source pixels, the colour tracker's "
+                  f"water top {travel['tracker_px']:.1f}, on the {travel['frames']} frames both read: ratio "
+                  f"{travel['ratio']:.3f} (slope of fitode's rows on the tracker's {travel['slope']:.3f})")
     for s in skips:
         print(s)
     print(f"wrote {path}; {bc.ran_on(record)}")

@@ -8,7 +8,8 @@ fitode's scenes: blur, noise, sRGB, JPEG; 320x240 unless said):
             --param distractors=0`, w2 18, 30 fps, 8 s); truth: the can's centre
     hand    a ball held by a hand, lifted and let go; it falls, the hand pulls away (60 fps)
     large   a textured block a third of the frame wide swinging sideways (30 fps, 8 s)
-    water   a tank draining (h' = -k sqrt(h)); truth: the water line's row (30 fps, 8 s)
+    water   a tank draining (h' = -k sqrt(h)), its width, its back's grey and its water's colour
+            random; truth: the water line's row (30 fps, 8 s)
     small   a ball 2 pixels across on a pendulum's arc (30 fps, 6 s)
 
 and the shared real pendulums and the drop (../shared/realvideos) against bench/realclips.py's
@@ -18,12 +19,12 @@ some objects (the bob's blue lower half), so on the real clips the table gives t
 after their median offset is taken out, on the frames both follow, beside the raw one.
 
 Each track is read by the change detector (fitode.video.track.measure, the reader's until now), by
-the object tracker (fitode.video.follow) seeded by it, and as a reader would take it by
-fitode.video.follow.choose (the detector's unless its path switches between moving things, as the
-reader takes it); the table gives the RMS error and the
-largest, the frames each could not place, and the constant the track leads to (a damped sine's
-w0^2 for the oscillations, the fall's g in px/s^2, Torricelli's k in px^0.5/s), fitted to the
-track as realclips.py fits its own.
+the object tracker (fitode.video.follow) seeded by it, and as the reader takes it
+(fitode.video.track.place: the detector's unless its path switches between moving things,
+fitode.video.follow.choose; the water line where the detector's path is a band of water,
+fitode.video.waterline); the table gives the RMS error and the largest, the frames each could
+not place, and the constant the track leads to (a damped sine's w0^2 for the oscillations, the
+fall's g in px/s^2, Torricelli's k in px^0.5/s), fitted to the track as realclips.py fits its own.
 
     python bench/tracking.py                 # every scene and clip (a few minutes)
     python bench/tracking.py --scenes can,small --no-real
@@ -154,23 +155,30 @@ def scene_water(seed: int) -> dict[str, Any]:
     h, w = SIZE
     fps, n = 30.0, 240
     t = np.arange(n) / fps
-    bottom, h0 = 0.9 * h, rng.uniform(0.6, 0.7) * h
+    bottom, h0 = rng.uniform(0.8, 0.92) * h, rng.uniform(0.45, 0.6) * h
     k = 2 * (math.sqrt(h0) - math.sqrt(0.25 * h0)) / t[-1]  # drains to a quarter
     level = bottom - (math.sqrt(h0) - k * t / 2) ** 2
-    x0, x1 = 0.38 * w, 0.62 * w
+    middle, half = rng.uniform(0.35, 0.65) * w, rng.uniform(0.06, 0.16) * w  # a narrow tube or a wide tank
+    x0, x1 = middle - half, middle + half
+    # the tank's back and the water in any colour, the water lighter or darker than the back
+    back = np.full(3, rng.uniform(0.3, 0.85), np.float32)
+    luma = np.array([0.299, 0.587, 0.114])
+    water = rng.uniform(0.05, 0.95, 3).astype(np.float32)
+    while abs(float(luma @ water) - float(back[0])) < 0.2:
+        water = rng.uniform(0.05, 0.95, 3).astype(np.float32)
     truth = np.stack([np.full(n, (x0 + x1) / 2), level], axis=1) - 0.5
     bg = _wall(rng, h, w)
     glass = R.Canvas(bg, 4)
     glass.paint(R.box((x0 + x1) / 2, (bottom + 0.15 * h) / 2, (x1 - x0) / 2 + 3, (bottom - 0.15 * h) / 2 + 3, radius=3),
                 (0.55, 0.58, 0.6), (x0 - 5, 0.15 * h - 5, x1 + 5, bottom + 5))
     glass.paint(R.box((x0 + x1) / 2, (bottom + 0.15 * h) / 2, (x1 - x0) / 2, (bottom - 0.15 * h) / 2, radius=2),
-                (0.8, 0.82, 0.84), (x0 - 2, 0.15 * h - 2, x1 + 2, bottom + 2))
+                back, (x0 - 2, 0.15 * h - 2, x1 + 2, bottom + 2))
 
     def draw(cv, i):
         top = level[i]
         cv.paint(R.intersect(R.box((x0 + x1) / 2, (bottom + 0.15 * h) / 2, (x1 - x0) / 2, (bottom - 0.15 * h) / 2),
                              R.half_plane(0.0, -1.0, 0.0, top)),
-                 (0.55, 0.12, 0.1), (x0 - 1, top - 1, x1 + 1, bottom + 1))
+                 water, (x0 - 1, top - 1, x1 + 1, bottom + 1))
 
     return {"frames": _film(glass.image, draw, n, seed), "truth": truth, "dt": 1 / fps, "kind": "drain", "axis": 1,
             "bottom": bottom - 0.5, "constant": ("k_px", k)}
@@ -212,14 +220,14 @@ def track_change(frames: np.ndarray) -> np.ndarray:
 
 
 def track_object(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
-    """The object tracker seeded by the change detector's paths, and the reader's choice between
-    the two (fitode.video.follow.choose) with its note."""
-    from fitode.video.follow import choose, follow_best
-    from fitode.video.track import MAX_OBJECTS, measure_paths
+    """The object tracker seeded by the change detector's paths, and the path the reader takes
+    (fitode.video.track.place: the detector's, the object tracker's or a water line) with its note."""
+    from fitode.video.follow import follow_best
+    from fitode.video.track import MAX_OBJECTS, measure_paths, place
 
     paths, areas = measure_paths(frames, MAX_OBJECTS, per_frame=True)
     found = follow_best(frames, paths)
-    chosen, how, _ = choose(frames, paths, areas, found) if found is not None else (paths[0], "no object", None)
+    chosen, how, _, _ = place(frames, paths, areas, found)
     return (np.full((len(frames), 2), np.nan) if found is None else found.xy), chosen, how
 
 

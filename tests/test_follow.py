@@ -41,6 +41,24 @@ def test_follows_the_object_to_a_fraction_of_a_pixel():
     assert np.all(found.sigma > 0) and np.all(found.sigma < 1.0)
 
 
+def test_a_ball_that_stops_dead_is_followed_through_the_stop():
+    # a fall that ends at rest: the pass that meets the stop predicts 7 pixels a frame where the
+    # ball stands still (or, backwards from the rest, none where it moves 7 pixels a frame)
+    n, h, w = 48, 140, 120
+    wall = (0.6 + 0.05 * R.value_noise(np.random.default_rng(1), h, w, (4, 12))).astype(np.float32)
+    t = np.minimum(np.arange(n), 30) / 30.0
+    y = 12 + 105 * t ** 2
+    frames = np.empty((n, h, w), np.uint8)
+    for i in range(n):
+        cv = R.Canvas(wall.copy(), 4)
+        cv.paint(R.circle(60.0, y[i], 6.0), lambda xx, yy: 0.25 + 0.2 * (np.sin((xx - 60.0) * 0.9) > 0),
+                 (53, y[i] - 7, 67, y[i] + 7))
+        frames[i] = np.clip(cv.image * 255 + 0.5, 0, 255).astype(np.uint8)
+    found = follow_best(frames, measure_paths(frames, MAX_OBJECTS)[0])
+    assert found is not None and not found.hidden.any()
+    assert np.abs(found.xy[:, 1] - (y - 0.5)).max() < 0.5
+
+
 def test_hidden_frames_are_marked_not_filled_with_what_covers_the_object():
     frames, truth = _clip(cover=(20, 26))
     found = follow_best(frames, measure_paths(frames, MAX_OBJECTS)[0])

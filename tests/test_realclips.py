@@ -60,3 +60,18 @@ def test_missing_clip_folder_is_a_skip(tmp_path, capsys):
     assert rc.run(args) == 0
     assert "skip: no clip folder" in capsys.readouterr().out
     assert (tmp_path / "out" / "realclips.json").is_file()
+
+
+def test_the_readings_travel_is_compared_with_the_water_top_on_the_frames_both_read(tmp_path):
+    rc = _load()
+    levels = np.full(40, np.nan)
+    levels[5:35] = 100 + 2.0 * np.arange(30)  # the colour tracker's water top, frames 5-34
+    rows = ["time_s,frame,h,y_px"] + [f"{f / 30:.4f},{f},0,{250 + 1.0 * (f - 5)}" for f in range(0, 40, 3)]
+    rows[3] = rows[3].rsplit(",", 1)[0] + ","  # a frame the reading left empty
+    (tmp_path / "track.csv").write_text("\n".join(rows) + "\n")
+    travel = rc.reading_travel(tmp_path / "track.csv", levels)
+    # frames 6, 9, ... 33 read by both, frame 6 (the emptied one) left out: a reading at half the speed
+    assert travel["frames"] == 9
+    assert travel["fitode_px"] == pytest.approx(24.0) and travel["tracker_px"] == pytest.approx(48.0)
+    assert travel["ratio"] == pytest.approx(0.5) and travel["slope"] == pytest.approx(0.5)
+    assert rc.reading_travel(tmp_path / "none.csv", levels) is None

@@ -90,6 +90,7 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
         tmpl, wgt, rf = template.copy(), weight, ref
         last: list[np.ndarray] = []
         lost, angle = 0, 0.0
+        detected = np.full(2, np.nan)
         ts = range(t0, t_all) if way == 1 else range(t0 - 1, -1, -1)
         if way == -1:
             last = [xy[t0]] if np.isfinite(xy[t0, 0]) else []
@@ -132,12 +133,18 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
             # a match away from where the object should be is taken only where it matches well
             # (the object taken up again after it was hidden); a poor one is something else
             # while the object is followed, a jump away from its predicted place is something else
-            # however well it matches (the can's spring and a leg behind it)
-            far = guess is None or float(np.linalg.norm(place - guess)) > 0.25 * size + 2.0
+            # however well it matches (the can's spring and a leg behind it), unless it lies where
+            # the change detector's path is too (the template's place from it in the frame last
+            # placed): the motion may change at once (a ball that stops dead, followed backwards)
+            there = seed_xy[t] + detected
+            far = guess is None or (float(np.linalg.norm(place - guess)) > 0.25 * size + 2.0
+                                    and not float(np.linalg.norm(place - there)) <= 0.25 * size + 2.0)
             if far and (corr < GOOD or not lost):
                 lost += 1
                 continue
             xy[t], sigma[t], score[t] = place, se, corr
+            if np.isfinite(seed_xy[t, 0]):  # where the template's place lies from the detector's
+                detected = place - seed_xy[t]
             rigid[t] = _score(patch, template, weight) if patch.shape == template.shape else corr
             # taken up again after frames lost: its step from the place before the loss is not one frame's
             last = (last + [place])[-2:] if not lost else [place]

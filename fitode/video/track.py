@@ -13,6 +13,8 @@ floor, is sub-pixel (within a quarter of a pixel for a ball two pixels across). 
 opened (eroded, then dilated, by 3x3) where that leaves anything: a pendulum's string is thin and
 often more contrasted than its bob, and pulls the centroid towards the pivot by a varying amount. The region is found on the change shrunk by LOCATE (cheap)
 and measured at full resolution inside it.
+Where the strongest change is a band of water between a water line and its place in the static
+scene, the track is the line itself (fitode.video.waterline), not the band's centroid.
 
 The frames are kept at the source's resolution unless the clip would take more than TRACK_BYTES
 so; then they are shrunk by the smallest whole factor that fits, and the track says so.
@@ -26,7 +28,8 @@ import cv2
 import numpy as np
 
 from fitode.train.observe.track import Track
-from fitode.video.follow import choose
+from fitode.video.follow import Followed, choose
+from fitode.video.waterline import read_line
 
 TRACK_BYTES = 384 * 2 ** 20
 BACKGROUND_FRAMES = 48
@@ -85,7 +88,7 @@ class TrackRecorder:
         self.frames = []
         paths, areas = measure_paths(stack, MAX_OBJECTS, per_frame=True)
         area = float(np.nanmean(areas)) if np.isfinite(areas).any() else 0.0
-        xy, how, found = choose(stack, paths, areas)
+        xy, how, found, line = place(stack, paths, areas)
         if found is not None:  # the object's own size, not that of the change the detector followed
             area = found.area
         k = self.factor
@@ -94,9 +97,29 @@ class TrackRecorder:
             return np.stack([self.crop[0] + (p[..., 0] + 0.5) * k - 0.5, self.crop[1] + (p[..., 1] + 0.5) * k - 0.5], axis=-1)
 
         where = "at the source's resolution" if k == 1 else f"on frames shrunk {k}x to stay within memory"
-        size = "" if found is not None else f", {area * k * k:.0f} source pixels on average"  # a template's size is in `how`
+        # a template's size is in `how`; a water line has none
+        size = "" if found is not None or line else f", {area * k * k:.0f} source pixels on average"
         note = f"{how}{size}, measured {where}"
-        return Track(source(xy), float(area * k * k), k, note, objects(source(paths)), followed=found is not None)
+        return Track(source(xy), float(area * k * k), k, note, objects(source(paths)), followed=found is not None,
+                     line=line)
+
+
+def place(stack: np.ndarray, paths: np.ndarray, areas: np.ndarray,
+          found: Followed | None = None) -> tuple[np.ndarray, str, Followed | None, bool]:
+    """The path the reader takes through gray frames (T, H, W) uint8 given the change detector's
+    paths and its first path's area per frame (measure_paths): the object tracker's or the
+    detector's (follow.choose), or, where the detector's path is the centroid of a band of water,
+    the water line (waterline.read_line). Returns the path (T, 2), one line on why, the object
+    tracker's result where its path was taken, and whether the path is a water line. found: the
+    object tracker's result where the caller has it."""
+    xy, how, found = choose(stack, paths, areas, found)
+    if found is None:
+        sample = _sample(len(stack))
+        background = np.median(stack[sample], axis=0).round().astype(np.uint8)
+        line = read_line(stack, paths[0], sample, background, _noise(stack[sample[::6]], background))
+        if line is not None:
+            return line[0], line[1], None, True
+    return xy, how, found, False
 
 
 def objects(paths: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -118,7 +141,7 @@ def measure_paths(stack: np.ndarray, objects: int = 1, per_frame: bool = False) 
     """(objects, T, 2) the paths of the `objects` strongest moving things in gray frames
     (T, H, W) uint8 (see follow), the first the object's, NaN where a path has nothing; and the
     first object's mean area in pixels (per_frame: its area in each frame, (T,), NaN where unseen)."""
-    sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), BACKGROUND_FRAMES)).round().astype(int))
+    sample = _sample(len(stack))
     background = np.median(stack[sample], axis=0).round().astype(np.uint8)
     noise = _noise(stack[sample[::6]], background)
     found = {t: _candidates(stack[t], background, noise) for t in range(len(stack))}
@@ -150,6 +173,11 @@ def measure_paths(stack: np.ndarray, objects: int = 1, per_frame: bool = False) 
     if per_frame:
         return paths, area
     return paths, float(np.nanmean(area)) if np.isfinite(area).any() else 0.0
+
+
+def _sample(length: int) -> np.ndarray:
+    """The frames (up to BACKGROUND_FRAMES, spread over the clip) the static scene is the median of."""
+    return np.unique(np.linspace(0, length - 1, min(length, BACKGROUND_FRAMES)).round().astype(int))
 
 
 def _noise(frames: np.ndarray, background: np.ndarray) -> float:

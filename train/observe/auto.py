@@ -102,7 +102,7 @@ def _resolved(spec, system, frames, light, encoder, source, track) -> Observatio
         model.reason = (f"level (auto: a single first-order state named along the image's vertical "
                         f"({system.states[0]} up), and the frames show a horizontal edge that moves "
                         f"{level.travel:.1f} pixels one way (rank correlation {one_way(level.height):.2f} with time): "
-                        "its height, read from the shift of the rows' profile, is the state)")
+                        "its height is the state)")
         return model
     if seen is not None and seen.moves and seen.one_way >= ONE_WAY:
         model = PositionObservation()

@@ -12,11 +12,16 @@ across the band (the median profile's last row minus its first). That is exact f
 of the line (a meniscus, a highlight on the surface, a ball floating on it) that moves with it,
 and it sums the whole band's pixels, so it reads a fraction of a pixel on shrunk frames (on the
 coverage bench's drains: 0.04-0.06 pixels rms about the true level, 1% of a 4-pixel travel).
+Where the reader has read the water line itself at the source's resolution (the track's `line`:
+fitode.video.waterline), the level is that line's height in source pixels instead: the sum over a
+band takes the step across it from the band's end rows, and on the shared bottle at half its
+resolution the band ran down to the bottle's floor (read_level: a travel of 318 pixels for 159).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 
 from fitode.errors import ConfigError
@@ -123,11 +128,13 @@ class LevelObservation(MeasuredObservation):
 
     def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
         out = ObservationModel.prepare(self, frames, architecture, fit_frames)  # the components the checks score against
+        n_fit = frames.shape[0] if fit_frames is None else int(fit_frames)
+        if self.track is not None and self.track.line and len(self.track) == frames.shape[0]:
+            return self._line(frames, out.components, n_fit)
         level = read_level(frames, fit_frames)
         if level is None or not level.is_level:
             raise ConfigError("the level observation sees no water line (a horizontal edge that moves up or down "
                               "across the changing columns); observe 'position' or 'any'")
-        n_fit = frames.shape[0] if fit_frames is None else int(fit_frames)
         h = level.height
         z = (h - h[:n_fit].mean()) / h[:n_fit].std().clamp_min(1e-12)
         (left, right), (top, bottom) = level.columns, level.rows
@@ -138,3 +145,20 @@ class LevelObservation(MeasuredObservation):
                          region=[float(left) - 0.5, float(top) - 0.5, float(right) + 0.5, float(bottom) + 0.5])
         return self.column(z.to(frames.dtype), out.components, note, None, drawing,
                            unit_scale=float(h[:n_fit].std()) * self.lengths.factor((0.0, 1.0)))
+
+    def _line(self, frames: torch.Tensor, components, n_fit: int) -> Prepared:
+        """The level from the reader's water line (fitode.video.waterline), in source pixels: the
+        line's own row in every frame at the source's resolution, where the shrunk frames' row
+        profile sums the whole band (whose far rows darken with the water's depth)."""
+        xy = self.track.filled()
+        h = torch.as_tensor(-(xy[:, 1] - xy[:n_fit, 1].mean()), dtype=torch.float64)
+        z = (h - h[:n_fit].mean()) / h[:n_fit].std().clamp_min(1e-12)
+        travel = float(h[:n_fit].max() - h[:n_fit].min())
+        note = (f"level: the height of the water line in the reader's track at the source's resolution, travelling "
+                f"{travel:.1f} source pixels, read linearly")
+        # drawn as a position along the vertical, up: the line's place on the frames, the fitted trajectory on it
+        drawing = record(self.name, reading="line", space="source",
+                         track=[None if np.isnan(x) else [float(x), float(y)] for x, y in self.track.xy],
+                         line={"point": [float(v) for v in xy[:n_fit].mean(axis=0)], "direction": [0.0, -1.0]})
+        return self.column(z.to(frames.dtype), components, note, None, drawing,
+                           unit_scale=float(h[:n_fit].std()) * self.lengths.factor((0.0, 1.0), source=True))

@@ -83,10 +83,12 @@ def _weak_axes(xy: torch.Tensor, axes: list[str]) -> list[int]:
     return [i for i, axis in enumerate(axes) if float(columns[axis].std()) < BARELY * spread]
 
 
-# what a position reads: the change's centroid, or the object followed by its appearance where the
-# reader took that (fitode.video.follow: the change detector's path went from one thing to another)
+# what a position reads: the change's centroid, the object followed by its appearance where the
+# reader took that (fitode.video.follow: the change detector's path went from one thing to another),
+# or a water line where the change is a band of water (fitode.video.waterline)
 CENTROID = "the centroid of what differs most from the static scene ({pixels:.0f} pixels on average)"
 FOLLOWED = "the object followed by its appearance ({pixels:.0f} pixels)"
+LINE = "the water line (the moving end of the band of change)"
 
 
 class PositionObservation(MeasuredObservation):
@@ -140,7 +142,7 @@ class PositionObservation(MeasuredObservation):
                     or _strays(full, fit_frames) < _strays(xy, fit_frames)):
                 xy, pixels, unseen = full, self.track.area, self.track.unseen
                 where = "the reader's track at the source's resolution: "
-                what = FOLLOWED if self.track.followed else CENTROID
+                what = LINE if self.track.line else FOLLOWED if self.track.followed else CENTROID
             else:
                 disagree = (f"; the reader's track at the source's resolution was set aside: it follows the "
                             f"shrunk frames' centroids with a correlation of only {agree:.2f} and jumps more "

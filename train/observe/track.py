@@ -29,6 +29,8 @@ class Track:
     objects: tuple[np.ndarray, ...] = ()
     # xy is the object followed by its appearance (fitode.video.follow), not the change's centroid
     followed: bool = False
+    # xy is a water line, the moving end of a band of change (fitode.video.waterline), not a centroid
+    line: bool = False
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])
@@ -52,7 +54,8 @@ class Track:
 
     def head(self, n: int) -> "Track":
         """The first n frames (a trimmed or strided clip's track follows its frames)."""
-        return Track(self.xy[:n], self.area, self.factor, self.note, tuple(p[:n] for p in self.objects), self.followed)
+        return Track(self.xy[:n], self.area, self.factor, self.note, tuple(p[:n] for p in self.objects), self.followed,
+                     self.line)
 
     def object(self, k: int) -> "Track":
         """The track of the k-th moving object from the left (1-based); ConfigError where fewer
