@@ -74,8 +74,9 @@ def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iter
     physical_units = bool(result.meta.get("physical_units"))
     measured = list(_measurement_findings(result)) + list(extra)
     interrupted = bool(result.meta.get("interrupted"))
+    missed = _held_out_missed(result.checks.get("interval"), result.parameters)
     if not interrupted:
-        measured += _interval_findings(result)
+        measured += _interval_findings(result, missed)
     if interrupted:
         measured.append(Finding("ambiguous", "training was interrupted (Ctrl-C): the estimates come from "
                                 "unfinished training"))
@@ -100,39 +101,35 @@ def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iter
         found += mine
         found.sort(key=lambda f: -LEVELS.index(f.level))  # stable: the checks' own order within a level
         verdicts[name] = _verdict(found, sources, best_score, name in own_units)
-    return Assessment(verdicts, everything, _warnings(everything, verdicts), _notes(result))
+    return Assessment(verdicts, everything, _warnings(everything, verdicts), _notes(result, missed))
 
 
 def _measurement_findings(result) -> Iterable[Finding]:
     return (Finding.from_dict(f) for f in result.checks.get("findings", []))
 
 
-def _interval_findings(result) -> list[Finding]:
+def _interval_findings(result, missed) -> list[Finding]:
     """Does the equation explain the clip as well as the interval assumes? (see the module
-    docstring). Nothing where no interval was asked for (checks without "interval")."""
+    docstring; missed: _held_out_missed's answer). Nothing where no interval was asked for
+    (checks without "interval")."""
     if "interval" not in result.checks:
         return []
     boot = result.checks["interval"]
     if boot is None:
         return [Finding("ambiguous", "no interval could be made: the path cannot be fitted as one trajectory of "
                         "the equation over the clip")]
-    out = []
-    held, null = boot.get("held_out"), boot.get("held_out_null")
+    if missed is None or missed[1] == ():
+        return []
     # (beyond what the same residuals, resampled about the one trajectory, reach where the equation holds)
-    missed = _held_out_missed(boot, result.parameters)
-    if missed is not None:
-        said, moved, _ = missed
-        if moved:
-            out.append(Finding("ambiguous", said + ": one set of constants does not predict the clip",
-                               moved if boot.get("held_out_values") else None))
-    return out
+    return [Finding("ambiguous", missed[0] + ": one set of constants does not predict the clip", missed[1])]
 
 
-def _held_out_missed(boot, parameters) -> tuple[str, tuple[str, ...], tuple[str, ...]] | None:
+def _held_out_missed(boot, parameters) -> tuple[str, tuple[str, ...] | None, tuple[str, ...]] | None:
     """Where the equation fitted without the last quarter misses it (see the module docstring):
     what to say, the constants that fit moves out of their 95% interval (relative to the value:
-    the fit is in the path's units, the interval in the reported ones; every constant where the
-    record has no such fit or a constant no interval), and those it leaves inside it. A slow error
+    the fit is in the path's units, the interval in the reported ones; a constant without an
+    interval counts as moved, and None is every constant, where the record has no such fit), and
+    those it leaves inside it. A slow error
     of the reading (a tracked centre off by a tenth of a pixel, periodic with a released swing)
     mispredicts a quarter by 3.6 to 4 times the residuals and moves the length by 0.05%, its
     interval being 0.2% (the pivot's share): no doubt about that number. None where the quarter
@@ -144,7 +141,7 @@ def _held_out_missed(boot, parameters) -> tuple[str, tuple[str, ...], tuple[str,
             "the whole clip's fit there" + (f" (its residuals resampled reach {null:.3g})" if null else ""))
     without, values = boot.get("held_out_values") or {}, boot.get("trajectory") or {}
     if not without:
-        return said, tuple(values) or ("*",), ()
+        return said, None, ()
 
     def inside(name: str) -> bool:
         est = parameters.get(name)
@@ -267,11 +264,10 @@ def _warnings(findings: list[Finding], verdicts: Mapping[str, Verdict]) -> list[
     return out
 
 
-def _notes(result) -> list[str]:
+def _notes(result, missed) -> list[str]:
     n_runs = len(result.runs)
     failed = [r.index for r in result.runs if r.status == "failed"]
     out = []
-    missed = _held_out_missed(result.checks.get("interval"), result.parameters) if "interval" in result.checks else None
     if missed is not None and missed[2]:
         stay = missed[2]
         out.append(f"{missed[0]}, yet {', '.join(stay)} fitted without it stay{'s' if len(stay) == 1 else ''} inside "

@@ -377,9 +377,10 @@ def _one_motion(x: np.ndarray, spans: list[tuple[int, int]], cuts: list[tuple[in
     runs: list[list[tuple[int, int]]] = []
     for span in spans:
         if runs:
-            between = np.ones(max(span[0] - runs[-1][-1][1], 0), dtype=bool)
+            end = runs[-1][-1][1]
+            between = np.ones(max(span[0] - end, 0), dtype=bool)
             for c0, c1 in cuts:  # the frames of the gap that no impact explains
-                between[max(c0 - runs[-1][-1][1], 0):max(c1 - runs[-1][-1][1], 0)] = False
+                between[max(c0 - end, 0):max(c1 - end, 0)] = False
             if between.sum() <= LOST_GAP * (2 * side + 1):
                 runs[-1].append(span)
                 continue

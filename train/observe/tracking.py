@@ -216,13 +216,6 @@ def _strongest_region(heat: torch.Tensor) -> torch.Tensor:
 
 STRAY_SPAN = 2  # neighbours on each side whose local parabola a frame of a turning path is checked against
 ROUNDS = 5
-LOCAL_SPAN = 7  # frames on each side whose misses set a frame's own noise (mend_strays)
-
-
-def _running_median(x: np.ndarray, half: int) -> np.ndarray:
-    """The median of x (T,) over the 2 half + 1 frames around each frame (fewer at the ends)."""
-    padded = np.concatenate([np.full(half, np.nan), x, np.full(half, np.nan)])
-    return np.nanmedian(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1), axis=1)
 
 
 def mend_strays(xy: np.ndarray, n_fit: int | None = None) -> tuple[np.ndarray, int]:
@@ -233,11 +226,8 @@ def mend_strays(xy: np.ndarray, n_fit: int | None = None) -> tuple[np.ndarray, i
     (itself left out; at the ends, the nearest such frames, its miss then scaled down by the
     larger noise of an extrapolation), fitted per coordinate: a swing is smooth over a few frames
     and a bounce lies on a line with the frames on one side of it, a centroid that jumped to
-    something else for a frame or two does neither. Far means more than MEND_SIGMAS times the misses' robust spread, both over the first
-    n_fit frames and over the 2 LOCAL_SPAN + 1 frames around the frame, and more than MEND_PIXELS: a
-    ball's centroid is blurred and clipped while it falls fast, so its misses there are many times
-    those of the frames where it is held or rests, yet it is the ball (a real dropped ball's whole
-    first flight was read from its neighbours as a straight line). A stray also pulls its neighbours' parabolas, so the
+    something else for a frame or two does neither. Far means more than MEND_SIGMAS times the misses' robust spread over the first
+    n_fit frames and more than MEND_PIXELS. A stray also pulls its neighbours' parabolas, so the
     first round takes only the frames that miss most among their neighbours, and later rounds
     check every frame against the path so mended (up to ROUNDS, until nothing changes)."""
     x = np.asarray(xy, dtype=np.float64)
@@ -275,10 +265,10 @@ def mend_strays(xy: np.ndarray, n_fit: int | None = None) -> tuple[np.ndarray, i
         predicted = np.einsum("tw,twk->tk", filters[place], mended[index])
         miss = np.linalg.norm(x - predicted, axis=1) / gain
         if threshold is None:
-            threshold = np.full(n, max(MEND_SIGMAS * 1.4826 * float(np.median(miss[:n_fit])), MEND_PIXELS / gain.min()))
+            threshold = max(MEND_SIGMAS * 1.4826 * float(np.median(miss[:n_fit])), MEND_PIXELS / gain.min())
         line = np.zeros(n, dtype=bool)
-        line[1:] |= (left[1:] <= threshold[1:]) & (left[:-1] <= threshold[:-1])
-        line[:-1] |= (right[:-1] <= threshold[:-1]) & (right[1:] <= threshold[1:])
+        line[1:] |= (left[1:] <= threshold) & (left[:-1] <= threshold)
+        line[:-1] |= (right[:-1] <= threshold) & (right[1:] <= threshold)
         far = (miss > threshold) & ~line
         if first is None:
             # (among the far frames: a frame that lies on its side's curve is no candidate, however a
