@@ -273,3 +273,15 @@ def test_pieces_of_another_motion_are_left_out_and_said():
     text = kept.describe(1 / 30, n_frames=216)
     assert "3 flights between 2 bounces" in text and "left out as another motion: 3.90-5.70 s, 5.97-7.20 s" in text
     assert Pieces.from_dict(kept.to_dict(1 / 30, 216)).left_out == kept.left_out
+
+
+def test_a_slow_drain_is_no_hold():
+    # a level falling 7 pixels in 4.9 s, read with 0.07 pixels of noise: every 0.2 s window is
+    # still, the whole clip is not; it was "held still until 4.72 s" and fitted on its last 11 frames
+    dt = 1 / 60
+    t = np.arange(294) * dt
+    h = (np.sqrt(60.0) - 0.12 * t) ** 2
+    for seed in range(3):
+        x = h + np.random.default_rng(seed).normal(0, 0.07, len(t))
+        pieces = find_pieces(x[:, None], dt, parabola_fit(x))
+        assert pieces.spans == [(0, len(t))] and not any(e.kind == "hold" for e in pieces.events)
