@@ -221,13 +221,14 @@ def track_change(frames: np.ndarray) -> np.ndarray:
 
 def track_object(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
     """The object tracker seeded by the change detector's paths, and the path the reader takes
-    (fitode.video.track.place: the detector's, the object tracker's or a water line) with its note."""
+    (fitode.video.track.place: the detector's, the object tracker's or a water line) with its note,
+    worked out as the reader does (it follows the detector's own path where that does not switch)."""
     from fitode.video.follow import follow_best
     from fitode.video.track import MAX_OBJECTS, measure_paths, place
 
     paths, areas = measure_paths(frames, MAX_OBJECTS, per_frame=True)
     found = follow_best(frames, paths)
-    chosen, how, _, _ = place(frames, paths, areas, found)
+    chosen, how, _, _ = place(frames, paths, areas)
     return (np.full((len(frames), 2), np.nan) if found is None else found.xy), chosen, how
 
 

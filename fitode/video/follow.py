@@ -22,8 +22,9 @@ in a window around the place its last two positions predict:
 The place read is the template's reference point: the centre of the object's mask in the seed
 frame (each pixel weighted by how much of it the object covers).
 
-The reader (fitode.video.track.TrackRecorder) takes this track only where the change detector's
-path switches between moving things and this one follows another (choose).
+The reader (fitode.video.track.TrackRecorder) takes this track where the change detector's path
+switches between moving things and this one follows another, or where both follow the same object
+and this one scatters less from frame to frame (choose).
 """
 from __future__ import annotations
 
@@ -177,10 +178,7 @@ def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
     one that keeps its look best (the median score against the seed frame's template).
     The strongest change is not always the object: legs walking behind a can on a spring change
     more; they also change their shape as they go."""
-    sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), 48)).round().astype(int))
-    background = np.median(stack[sample], axis=0).round().astype(np.uint8)
-    noise = float(1.4826 * np.median(np.abs(stack[sample[::6], ::2, ::2].astype(np.int16)
-                                            - background[::2, ::2]))) + 0.5
+    background, noise = _static(stack)
     best, rank = None, None
     for path in paths:
         if np.isfinite(path[:, 0]).sum() < 3:
@@ -199,6 +197,16 @@ def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
         if rank is None or key > rank:
             best, rank = found, key
     return best
+
+
+def _static(stack: np.ndarray) -> tuple[np.ndarray, float]:
+    """The static scene (the median of up to 48 frames spread over the clip) and the noise of a
+    frame's difference from it, as one pixel's standard deviation."""
+    sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), 48)).round().astype(int))
+    background = np.median(stack[sample], axis=0).round().astype(np.uint8)
+    noise = float(1.4826 * np.median(np.abs(stack[sample[::6], ::2, ::2].astype(np.int16)
+                                            - background[::2, ::2]))) + 0.5
+    return background, noise
 
 
 def _seed(stack, seed_xy, background, noise):
@@ -528,6 +536,9 @@ SWITCHES = 3          # the change detector's path is set aside where it switche
 SAME = 0.5         # ... and is not taken where it stays within the object's size of the detector's path in this share
 SEEN = 0.9         # ... and the object tracker places the object in at least this share of the frames (the
                    # position observation reads no more than a tenth of them from their neighbours)
+STEADIER = 2.0     # where both follow the same object, the object tracker's path is taken where it scatters this many times less
+PROBE = 40         # ... judged first on this many consecutive frames (following the whole clip costs more than reading it)
+CHANGE = "the change from the static scene"  # the detector's path, as the track's line names it
 
 
 def switches(path: np.ndarray, area: np.ndarray) -> int:
@@ -544,22 +555,35 @@ def switches(path: np.ndarray, area: np.ndarray) -> int:
     return int((grows & (step > np.sqrt(np.minimum(a[1:], a[:-1])))).sum())
 
 
+def scatter(path: np.ndarray) -> float:
+    """How far a path (T, 2; NaN where unseen) scatters from frame to frame about a smooth motion,
+    in pixels: the median length of its third differences over runs of four placed frames, over
+    sqrt(20) (a third difference of independent errors has 20 times their variance; a swing, a fall
+    or a bounce between frames adds little to it). NaN where under 8 runs have it."""
+    third = np.diff(path, n=3, axis=0)
+    ok = np.isfinite(third[:, 0]) & np.isfinite(third[:, 1])
+    if ok.sum() < 8:
+        return math.nan
+    return float(np.median(np.linalg.norm(third[ok], axis=1)) / math.sqrt(20.0))
+
+
 def choose(stack: np.ndarray, paths: np.ndarray, area: np.ndarray,
            found: Followed | None = None) -> tuple[np.ndarray, str, Followed | None]:
     """The track the reader takes, and one line on why: the change detector's strongest path
     (paths: (n, T, 2), fitode.video.track.measure_paths; area: (T,) its region's pixels per frame)
-    where it does not switch from one moving thing to another (fewer than SWITCHES switches: the
-    detector is at the limit on a clean scene, the real pendulums); else the object tracker's (follow_best, seeded by the detector's paths), hidden
-    frames NaN, where it places the object in at least SEEN of the frames and follows another thing
-    than the detector's path (within the object's size in under SAME of them: a small object whose
-    region flickers switches too, and both follow it): something else changes
-    more than the object for a while (legs walking behind a can) and the detector's path goes
-    from one to the other. found: the object tracker's result where the caller has it. Returns the
-    path (T, 2), the line, and the object tracker's result where its path was taken (else None)."""
-    change = "the change from the static scene"
+    where it does not switch from one moving thing to another (fewer than SWITCHES switches) and
+    the object tracker does not follow that object more steadily (_steadier); else the object
+    tracker's (follow_best, seeded by the detector's paths), hidden frames NaN, where it places the
+    object in at least SEEN of the frames and follows another thing than the detector's path
+    (within the object's size in under SAME of them: a small object whose region flickers switches
+    too, and both follow it): something else changes more than the object for a while (legs
+    walking behind a can) and the detector's path goes from one to the other. found: the object
+    tracker's result where the caller has it. Returns the path (T, 2), the line, and the object
+    tracker's result where its path was taken (else None)."""
+    change = CHANGE
     n = switches(paths[0], area)
     if n < SWITCHES:
-        return paths[0], f"{change} (its path switches between moving things {n} time{'s' if n != 1 else ''}: under {SWITCHES})", None
+        return _steadier(stack, paths[0], found, f"{change} (its path switches between moving things {n} time{'s' if n != 1 else ''}: under {SWITCHES}")
     found = follow_best(stack, paths) if found is None else found
     if found is None:
         return paths[0], f"{change} (its path switches between moving things {n} times, but the object tracker found nothing to follow)", None
@@ -567,10 +591,49 @@ def choose(stack: np.ndarray, paths: np.ndarray, area: np.ndarray,
     if seen < SEEN:
         return paths[0], (f"{change} (its path switches between moving things {n} times, but the object tracker placed the object in only "
                           f"{100 * seen:.0f}% of the frames)"), None
-    both = np.isfinite(paths[0][:, 0]) & np.isfinite(found.xy[:, 0])
-    d = paths[0][both] - found.xy[both]
-    same = float((np.linalg.norm(d - np.median(d, axis=0), axis=1) <= math.sqrt(found.area)).mean()) if both.any() else 0.0
+    same = _same(paths[0], found)
     if same >= SAME:
-        return paths[0], (f"{change} (its path switches between moving things {n} times, but the object tracker "
-                          f"follows the same object: within its size in {100 * same:.0f}% of the frames)"), None
+        return _steadier(stack, paths[0], found, (f"{change} (its path switches between moving things {n} times, but the "
+                                                  f"object tracker follows the same object: within its size in {100 * same:.0f}% of the frames"))
     return found.xy, f"{found.note}, not {change}: its path switches between moving things {n} times", found
+
+
+def _same(path: np.ndarray, found: Followed) -> float:
+    """The share of the frames both place in which the object tracker's place lies within the
+    object's size of the detector's path, once their median offset is taken out."""
+    both = np.isfinite(path[:, 0]) & np.isfinite(found.xy[:, 0])
+    if not both.any():
+        return 0.0
+    d = path[both] - found.xy[both]
+    return float((np.linalg.norm(d - np.median(d, axis=0), axis=1) <= math.sqrt(found.area)).mean())
+
+
+def _steadier(stack: np.ndarray, path: np.ndarray, found: Followed | None,
+              why: str) -> tuple[np.ndarray, str, Followed | None]:
+    """The detector's path (T, 2) where it does not switch, unless the object tracker follows the
+    same object with STEADIER times less scatter from frame to frame: the detector's centroid weighs
+    each pixel by its change, which moves with what lies behind the object and with its shading
+    (a shaded ball that falls past a textured wall: 0.1 pixel of scatter and a pixel of offset,
+    where the tracker's place scatters by 0.02), and on an object that covers its own place in the
+    static scene it is the centroid of a crescent. Judged first on PROBE frames (where the caller
+    has no object tracker's result), then on the whole clip. why: the line's start."""
+    keep = f"{why})"
+    if found is None:
+        seen = np.flatnonzero(np.isfinite(path[:, 0]))
+        if len(seen) < 8:
+            return path, keep, None
+        middle = int(np.median(seen))
+        a = max(0, min(middle - PROBE // 2, len(path) - PROBE))
+        stretch = slice(a, a + PROBE)
+        background, noise = _static(stack)
+        probe = follow_object(stack[stretch], path[stretch], background, noise)
+        if probe is None or not scatter(probe.xy) * STEADIER <= scatter(path[stretch]):
+            return path, keep, None
+        found = follow_object(stack, path, background, noise)
+    if found is None or float(np.isfinite(found.xy[:, 0]).mean()) < SEEN or _same(path, found) < SAME:
+        return path, keep, None
+    mine, theirs = scatter(found.xy), scatter(path)
+    if not mine * STEADIER <= theirs:
+        return path, f"{why}; the object tracker follows it with {mine:.2g} px of scatter from frame to frame, the change with {theirs:.2g})", None
+    return found.xy, (f"{found.note}, not {CHANGE}: both follow the same object, with {mine:.2g} px of scatter from "
+                      f"frame to frame against the change's {theirs:.2g}"), found
