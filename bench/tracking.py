@@ -7,7 +7,8 @@ fitode's scenes: blur, noise, sRGB, JPEG; 320x240 unless said):
             walking back and forth behind it (`fitode synth scene spring --param legs=2
             --param distractors=0`, w2 18, 30 fps, 8 s); truth: the can's centre
     hand    a ball held by a hand, lifted and let go; it falls, the hand pulls away (60 fps)
-    large   a textured block a third of the frame wide swinging sideways (30 fps, 8 s)
+    large   a block a third of the frame wide, printed with bands in two random colours and a
+            darker frame, swinging sideways (30 fps, 8 s)
     water   a tank draining (h' = -k sqrt(h)), its width, its back's grey and its water's colour
             random; truth: the water line's row (30 fps, 8 s)
     small   a ball 2 pixels across on a pendulum's arc (30 fps, 6 s)
@@ -133,15 +134,24 @@ def scene_large(seed: int) -> dict[str, Any]:
     cy = np.full(n, 0.55 * h)
     truth = np.stack([cx, cy], axis=1) - 0.5
     half_w, half_h = w / 6, 0.18 * h
+    # two band colours at random, each far enough from the wall's grey that the block's ends show
+    # (a band the wall's colour at its end leaves no tracker a way to see where the block ends)
+    luma = np.array([0.299, 0.587, 0.114])
+    bands = []
+    while len(bands) < 2:
+        c = rng.uniform(0.05, 0.95, 3).astype(np.float32)
+        if abs(float(luma @ c) - 0.72) >= 0.15 and all(abs(float(luma @ (c - b))) >= 0.15 for b in bands):
+            bands.append(c)
 
     def draw(cv, i):
         x, y = cx[i], cy[i]
 
         def body(xx, yy):  # a box with a printed pattern: bands and a darker frame
             u, v = (xx - x) / half_w, (yy - y) / half_h
-            band = 0.5 + 0.5 * np.sign(np.sin(3 * np.pi * u + 2 * v))
-            col = np.asarray((0.2, 0.45, 0.3), np.float32) + band[..., None] * np.asarray((0.45, 0.3, 0.1), np.float32)
-            return col * (0.8 + 0.2 * (1 - v * v))[..., None]
+            band = (0.5 + 0.5 * np.sign(np.sin(3 * np.pi * u + 2 * v)))[..., None]
+            col = bands[0] * (1 - band) + bands[1] * band
+            edge = np.minimum(half_w - np.abs(xx - x), half_h - np.abs(yy - y)) < 3.0
+            return np.where(edge[..., None], 0.55 * col, col * (0.8 + 0.2 * (1 - v * v))[..., None])
         cv.paint(R.box(x, y, half_w, half_h, radius=3), body, (x - half_w - 2, y - half_h - 2, x + half_w + 2, y + half_h + 2))
 
     return {"frames": _film(_wall(rng, h, w), draw, n, seed), "truth": truth, "dt": 1 / fps, "kind": "oscillation",

@@ -29,6 +29,7 @@ and this one scatters less from frame to frame (choose).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import cv2
@@ -164,7 +165,7 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
         xy[doubt], sigma[doubt] = np.nan, np.nan
     if np.isfinite(sigma).sum() > 1:  # the seed frame matches itself exactly: its error is like its neighbours'
         sigma[t0] = float(np.nanmedian(np.delete(sigma, t0)))
-    shift = _recentre(stack, xy, t0, cut[2], template.shape, ref, noise)
+    shift = _recentre(stack, xy, t0, template.shape, ref, noise, background)
     xy += shift
     seen = np.isfinite(xy[:, 0])
     note = (f"the object followed by its appearance (a template of {area:.0f} pixels cut from frame {t0}, "
@@ -242,15 +243,23 @@ def _seed(stack, seed_xy, background, noise):
     return best, template, weight, ref, area, centre
 
 
-def _cut(frame, background, noise, near, change=None):
+def _cut(frame, background, noise, near, change=None, bridge: int = 0):
     """The object around `near` in one frame: (template, weight, ref, box, area, centre) or None
-    (change: the frame's change from the static scene, where the caller knows it better)."""
+    (change: the frame's change from the static scene, where the caller knows it better; bridge:
+    the width in pixels of the gaps closed between its parts, which then count as the object's)."""
     if change is None:
         change = cv2.absdiff(frame, background).astype(np.float32)
     h, w = change.shape
     low = 4.0 * noise
     hot = (change > low).astype(np.uint8)
     hot = cv2.morphologyEx(hot, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))  # a string, a spring: not the object
+    if bridge > 1:
+        # an object's parts the colour of what lies behind it change nothing (the light bands of a
+        # printed block on a light wall): the parts around them that do are joined across them
+        joined = cv2.morphologyEx(hot, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (bridge, bridge)))
+        bridged, hot = joined > hot, joined
+    else:
+        bridged = np.zeros(hot.shape, bool)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(cv2.dilate(hot, None), connectivity=8)
     if n < 2:
         return None
@@ -290,12 +299,13 @@ def _cut(frame, background, noise, near, change=None):
     # full cover: what the object's inside differs by at its least (a low quantile: a shaded ball
     # differs less on its lit side, and is whole there too)
     inside_px = cv2.erode(region, np.ones((3, 3), np.uint8))
-    core = change[inside_px > 0] if inside_px.sum() >= 4 else change[region > 0]
+    inside_px &= ~bridged  # a bridged gap changes nothing: it says nothing of the object's full change
+    core = change[inside_px > 0] if inside_px.sum() >= 4 else change[(region > 0) & ~bridged]
     if core.size < 2:
         return None
     full = max(float(np.quantile(core, 0.1)), low)
     cover = np.clip(change / full, 0.0, 1.0)
-    cover = np.where(filled > region, 1.0, np.where(cv2.dilate(filled, None) > 0, cover, 0.0))
+    cover = np.where((filled > region) | (bridged & (region > 0)), 1.0, np.where(cv2.dilate(filled, None) > 0, cover, 0.0))
     area = float(cover.sum())
     x0, y0 = max(bx - MARGIN, 0), max(by - MARGIN, 0)
     x1, y1 = min(bx + bw + MARGIN, w), min(by + bh + MARGIN, h)
@@ -334,47 +344,53 @@ def _aligned(new_weight, old_weight, old_ref, pad: int = 6) -> np.ndarray:
     return np.array(sub) - pad + np.asarray(old_ref, dtype=np.float64)
 
 
-def _recentre(stack, xy, t0, weight, shape, ref, noise, rounds: int = 2) -> np.ndarray:
+def _recentre(stack, xy, t0, shape, ref, noise, background) -> np.ndarray:
     """The shift (2,) from the template's reference point to the object's centre. The seed's cut
     is the change from the clip's median frame, and where the object covers its own median place
-    (a large object, a slow swing) that median holds part of it: the cut is a crescent. Once the
-    object's motion is known, each pixel's static scene is rebuilt from the frames in which the
-    template's box, moved with the object, lies away from it, and the object cut again from the
-    seed frame against it; a pixel the object never leaves counts as the object's."""
+    (a large object, a slow swing) that median holds part of it: the cut is a crescent, and which
+    part is missing moves as the object does. Once the object's motion is known, each frame's
+    change from the median frame is moved back with the object onto the seed frame, and the
+    median over up to 48 frames is what moves with the object: the whole of it, wherever it
+    stood clear of its median place in most of them (what crosses behind it does not follow it).
+    The object is cut from that, its parts joined across gaps up to a quarter of its narrower side
+    (a printed block's bands the colour of the wall change nothing)."""
     seen = np.flatnonzero(np.isfinite(xy[:, 0]))
     if len(seen) < 8 or not np.isfinite(xy[t0, 0]):
         return np.zeros(2)
     h, w = stack.shape[1:]
     sample = seen[np.unique(np.linspace(0, len(seen) - 1, min(len(seen), 48)).round().astype(int))]
+    changes = [cv2.absdiff(stack[t], background).astype(np.float32) for t in sample]
     th, tw = shape
-    centre = xy[t0].copy()
-    corner = centre - ref  # the template's top-left corner in the seed frame
-    box = np.array([corner[0], corner[1], corner[0] + tw, corner[1] + th])
-    for _ in range(rounds):
-        grow = 0.5 * max(box[2] - box[0], box[3] - box[1]) + 4
-        x0, y0 = int(max(box[0] - grow, 0)), int(max(box[1] - grow, 0))
-        x1, y1 = int(min(box[2] + grow, w)), int(min(box[3] + grow, h))
-        if x1 - x0 < 3 or y1 - y0 < 3:
-            return np.zeros(2)
-        ys, xs = np.mgrid[y0:y1, x0:x1]
-        values = stack[sample, y0:y1, x0:x1].astype(np.float32)
-        for k, t in enumerate(sample):
-            dx, dy = xy[t] - xy[t0]
-            inside = (xs >= box[0] + dx - 1) & (xs <= box[2] + dx + 1) & (ys >= box[1] + dy - 1) & (ys <= box[3] + dy + 1)
-            values[k][inside] = np.nan
-        known = np.isfinite(values).sum(axis=0) >= 3
-        with np.errstate(all="ignore"):
-            clean = np.nanmedian(np.where(known[None], values, 0.0), axis=0)
-        frame = stack[t0].astype(np.float32)
+    corner = xy[t0] - ref  # the template's top-left corner in the seed frame
+    grow = max(th, tw) + 4  # the crescent may be a small part of the object: the window widens until the object fits
+    for _ in range(3):
+        x0, y0 = int(max(math.floor(corner[0]) - grow, 0)), int(max(math.floor(corner[1]) - grow, 0))
+        x1, y1 = int(min(math.ceil(corner[0]) + tw + grow, w)), int(min(math.ceil(corner[1]) + th + grow, h))
+        moved = np.empty((len(sample), y1 - y0, x1 - x0), np.float32)
+        for i, t in enumerate(sample):
+            dx, dy = xy[t] - xy[t0]  # the window's pixel (u, v) lies at (x0 + u + dx, y0 + v + dy) in frame t
+            m = np.array([[1.0, 0.0, x0 + dx], [0.0, 1.0, y0 + dy]])
+            moved[i] = cv2.warpAffine(changes[i], m, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                      borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
+        with warnings.catch_warnings():  # a pixel outside every frame it was moved to
+            warnings.simplefilter("ignore", RuntimeWarning)
+            follows = np.nan_to_num(np.nanmedian(moved, axis=0))
         change = np.zeros((h, w), np.float32)
-        change[y0:y1, x0:x1] = np.where(known, np.abs(frame[y0:y1, x0:x1] - clean), 255.0)
-        cut = _cut(stack[t0], None, noise, centre, change)
+        change[y0:y1, x0:x1] = follows
+        hot = cv2.morphologyEx((change > 4.0 * noise).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+        ys, xs = np.nonzero(hot)
+        if not len(xs):
+            return np.zeros(2)
+        side = min(int(np.ptp(xs)), int(np.ptp(ys))) + 1
+        cut = _cut(stack[t0], None, noise, xy[t0], change, bridge=2 * (side // 8) + 1)
         if cut is None:
             return np.zeros(2)
-        _, _, _, (bx0, by0, bx1, by1), _, found = cut
-        box = np.array([bx0, by0, bx1, by1], dtype=np.float64)
-        centre = found
-    return centre - xy[t0]
+        bx0, by0, bx1, by1 = cut[3]
+        inside = (bx0 > x0 or x0 == 0) and (by0 > y0 or y0 == 0) and (bx1 < x1 or x1 == w) and (by1 < y1 or y1 == h)
+        if inside:
+            break
+        grow *= 2
+    return cut[5] - xy[t0]
 
 
 def _find(frame, template, weight, ref, guess, reach, angle=0.0):
