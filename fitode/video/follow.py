@@ -73,12 +73,8 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
     followed by its appearance through gray frames (T, H, W) uint8; None where no frame shows it
     clear enough to cut a template."""
     t_all = len(stack)
-    if background is None:
-        sample = np.unique(np.linspace(0, t_all - 1, min(t_all, 48)).round().astype(int))
-        background = np.median(stack[sample], axis=0).round().astype(np.uint8)
-    if noise is None:
-        noise = float(1.4826 * np.median(np.abs(stack[::max(1, t_all // 8), ::2, ::2].astype(np.int16)
-                                                - background[::2, ::2]))) + 0.5
+    if background is None or noise is None:
+        background, noise = _static(stack)
     cut = _seed(stack, seed_xy, background, noise)
     if cut is None:
         return None
