@@ -355,18 +355,21 @@ def _recentre(stack, xy, t0, shape, ref, noise, background) -> np.ndarray:
         return np.zeros(2)
     h, w = stack.shape[1:]
     sample = seen[np.unique(np.linspace(0, len(seen) - 1, min(len(seen), 48)).round().astype(int))]
-    changes = [cv2.absdiff(stack[t], background).astype(np.float32) for t in sample]
     th, tw = shape
     corner = xy[t0] - ref  # the template's top-left corner in the seed frame
     grow = max(th, tw) + 4  # the crescent may be a small part of the object: the window widens until the object fits
     for _ in range(3):
         x0, y0 = int(max(math.floor(corner[0]) - grow, 0)), int(max(math.floor(corner[1]) - grow, 0))
         x1, y1 = int(min(math.ceil(corner[0]) + tw + grow, w)), int(min(math.ceil(corner[1]) + th + grow, h))
-        moved = np.empty((len(sample), y1 - y0, x1 - x0), np.float32)
-        for i, t in enumerate(sample):
+        # at most 64 MiB of moved frames (a large object in a large frame: fewer of them)
+        few = max(8, min(len(sample), 2 ** 26 // (4 * (y1 - y0) * (x1 - x0))))
+        use = sample[np.unique(np.linspace(0, len(sample) - 1, few).round().astype(int))]
+        moved = np.empty((len(use), y1 - y0, x1 - x0), np.float32)
+        for i, t in enumerate(use):
             dx, dy = xy[t] - xy[t0]  # the window's pixel (u, v) lies at (x0 + u + dx, y0 + v + dy) in frame t
             m = np.array([[1.0, 0.0, x0 + dx], [0.0, 1.0, y0 + dy]])
-            moved[i] = cv2.warpAffine(changes[i], m, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+            moved[i] = cv2.warpAffine(cv2.absdiff(stack[t], background).astype(np.float32), m, (x1 - x0, y1 - y0),
+                                      flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                                       borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
         with warnings.catch_warnings():  # a pixel outside every frame it was moved to
             warnings.simplefilter("ignore", RuntimeWarning)
