@@ -645,8 +645,13 @@ def _steadier(stack: np.ndarray, path: np.ndarray, found: Followed | None,
         if probe is None or not scatter(probe.xy) * STEADIER <= scatter(path[stretch]):
             return path, keep, None
         found = follow_object(stack, path, background, noise)
-    if found is None or float(np.isfinite(found.xy[:, 0]).mean()) < SEEN or _same(path, found) < SAME:
-        return path, keep, None
+    if found is None:
+        return path, f"{why}; the object tracker found nothing to follow)", None
+    seen = float(np.isfinite(found.xy[:, 0]).mean())
+    if seen < SEEN:
+        return path, f"{why}; the object tracker placed it in only {100 * seen:.0f}% of the frames)", None
+    if _same(path, found) < SAME:
+        return path, f"{why}; the object tracker follows another object)", None
     mine, theirs = scatter(found.xy), scatter(path)
     if not mine * STEADIER <= theirs:
         return path, f"{why}; the object tracker follows it with {mine:.2g} px of scatter from frame to frame, the change with {theirs:.2g})", None
