@@ -19,8 +19,10 @@ in a window around the place its last two positions predict:
 - the template follows the object slowly (UPDATE of each well-matched frame, aligned to the
   sub-pixel place first) as it turns and its lighting changes.
 
-The place read is the template's reference point: the centre of the object's mask in the seed
-frame (each pixel weighted by how much of it the object covers).
+The place read is the template's reference point: the centre of the object in the seed frame
+(each pixel weighted by how much of it the object covers), cut, once its motion is known, from
+what moves with it (_recentre): the seed's own cut is a crescent where the object covers its place
+in the static scene.
 
 The reader (fitode.video.track.TrackRecorder) takes this track where the change detector's path
 switches between moving things and this one follows another, or where both follow the same object
