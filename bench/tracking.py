@@ -21,8 +21,9 @@ after their median offset is taken out, on the frames both follow, beside the ra
 
 Each track is read by the change detector (fitode.video.track.measure, the reader's until now), by
 the object tracker (fitode.video.follow) seeded by it, and as the reader takes it
-(fitode.video.track.place: the detector's unless its path switches between moving things,
-fitode.video.follow.choose; the water line where the detector's path is a band of water,
+(fitode.video.track.place: the detector's unless its path switches between moving things or the
+object tracker follows the same object more steadily, fitode.video.follow.choose; the water line
+where the detector's path is a band of water,
 fitode.video.waterline); the table gives the RMS error and the largest, the frames each could
 not place, and the constant the track leads to (a damped sine's w0^2 for the oscillations, the
 fall's g in px/s^2, Torricelli's k in px^0.5/s), fitted to the track as realclips.py fits its own.
