@@ -7,7 +7,8 @@ fitode's scenes: blur, noise, sRGB, JPEG; 320x240 unless said):
             walking back and forth behind it (`fitode synth scene spring --param legs=2
             --param distractors=0`, w2 18, 30 fps, 8 s); truth: the can's centre
     hand    a ball held by a hand, lifted and let go; it falls, the hand pulls away (60 fps)
-    large   a textured block a third of the frame wide swinging sideways (30 fps, 8 s)
+    large   a block a third of the frame wide, printed with bands in two random colours and a
+            darker frame, swinging sideways (30 fps, 8 s)
     water   a tank draining (h' = -k sqrt(h)), its width, its back's grey and its water's colour
             random; truth: the water line's row (30 fps, 8 s)
     small   a ball 2 pixels across on a pendulum's arc (30 fps, 6 s)
@@ -20,8 +21,9 @@ after their median offset is taken out, on the frames both follow, beside the ra
 
 Each track is read by the change detector (fitode.video.track.measure, the reader's until now), by
 the object tracker (fitode.video.follow) seeded by it, and as the reader takes it
-(fitode.video.track.place: the detector's unless its path switches between moving things,
-fitode.video.follow.choose; the water line where the detector's path is a band of water,
+(fitode.video.track.place: the detector's unless its path switches between moving things or the
+object tracker follows the same object more steadily, fitode.video.follow.choose; the water line
+where the detector's path is a band of water,
 fitode.video.waterline); the table gives the RMS error and the largest, the frames each could
 not place, and the constant the track leads to (a damped sine's w0^2 for the oscillations, the
 fall's g in px/s^2, Torricelli's k in px^0.5/s), fitted to the track as realclips.py fits its own.
@@ -133,15 +135,24 @@ def scene_large(seed: int) -> dict[str, Any]:
     cy = np.full(n, 0.55 * h)
     truth = np.stack([cx, cy], axis=1) - 0.5
     half_w, half_h = w / 6, 0.18 * h
+    # two band colours at random, each far enough from the wall's grey that the block's ends show
+    # (a band the wall's colour at its end leaves no tracker a way to see where the block ends)
+    luma = np.array([0.299, 0.587, 0.114])
+    bands = []
+    while len(bands) < 2:
+        c = rng.uniform(0.05, 0.95, 3).astype(np.float32)
+        if abs(float(luma @ c) - 0.72) >= 0.15 and all(abs(float(luma @ (c - b))) >= 0.15 for b in bands):
+            bands.append(c)
 
     def draw(cv, i):
         x, y = cx[i], cy[i]
 
         def body(xx, yy):  # a box with a printed pattern: bands and a darker frame
             u, v = (xx - x) / half_w, (yy - y) / half_h
-            band = 0.5 + 0.5 * np.sign(np.sin(3 * np.pi * u + 2 * v))
-            col = np.asarray((0.2, 0.45, 0.3), np.float32) + band[..., None] * np.asarray((0.45, 0.3, 0.1), np.float32)
-            return col * (0.8 + 0.2 * (1 - v * v))[..., None]
+            band = (0.5 + 0.5 * np.sign(np.sin(3 * np.pi * u + 2 * v)))[..., None]
+            col = bands[0] * (1 - band) + bands[1] * band
+            edge = np.minimum(half_w - np.abs(xx - x), half_h - np.abs(yy - y)) < 3.0
+            return np.where(edge[..., None], 0.55 * col, col * (0.8 + 0.2 * (1 - v * v))[..., None])
         cv.paint(R.box(x, y, half_w, half_h, radius=3), body, (x - half_w - 2, y - half_h - 2, x + half_w + 2, y + half_h + 2))
 
     return {"frames": _film(_wall(rng, h, w), draw, n, seed), "truth": truth, "dt": 1 / fps, "kind": "oscillation",
@@ -221,13 +232,14 @@ def track_change(frames: np.ndarray) -> np.ndarray:
 
 def track_object(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
     """The object tracker seeded by the change detector's paths, and the path the reader takes
-    (fitode.video.track.place: the detector's, the object tracker's or a water line) with its note."""
+    (fitode.video.track.place: the detector's, the object tracker's or a water line) with its note,
+    worked out as the reader does (it follows the detector's own path where that does not switch)."""
     from fitode.video.follow import follow_best
     from fitode.video.track import MAX_OBJECTS, measure_paths, place
 
     paths, areas = measure_paths(frames, MAX_OBJECTS, per_frame=True)
     found = follow_best(frames, paths)
-    chosen, how, _, _ = place(frames, paths, areas, found)
+    chosen, how, _, _ = place(frames, paths, areas)
     return (np.full((len(frames), 2), np.nan) if found is None else found.xy), chosen, how
 
 

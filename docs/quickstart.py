@@ -61,8 +61,8 @@ def main() -> int:
 
 
 def draw(folder: Path) -> Path:
-    """A small picture of the result: a frame of the clip, and the encoded latent against the
-    equation's trajectory with the estimates."""
+    """A small picture of the result: a frame of the clip, and the encoded latent (or the measured
+    state) against the equation's trajectory with the estimates."""
     import matplotlib
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
@@ -79,10 +79,12 @@ def draw(folder: Path) -> Path:
     a.imshow(clip.frames[0, 0], cmap="gray")
     a.set_title("frame 0 (48x48)", fontsize=8)
     a.axis("off")
-    b.plot(t, z, ".", ms=3, label="what the encoder read from each frame")
+    observed = report["plan"]["observation"]["value"]
+    encoded = observed == "any"  # the paper's free encoder, or a quantity measured in the frames
+    b.plot(t, z, ".", ms=3, label="what the encoder read from each frame" if encoded else f"the {observed} measured in each frame")
     b.plot(t, r, "-", lw=1.2, label="the equation with the estimates")
     b.set_xlabel("time (s)", fontsize=8)
-    b.set_ylabel("theta (latent units)", fontsize=8)
+    b.set_ylabel("theta (latent units)" if encoded else "theta (rad)" if observed == "angle" else "theta", fontsize=8)
     b.tick_params(labelsize=7)
     lo, hi = float(min(z.min(), r.min())), float(max(z.max(), r.max()))
     b.set_ylim(lo - 0.05 * (hi - lo), hi + 0.45 * (hi - lo))  # room for the legend above the swing

@@ -31,18 +31,24 @@ def test_the_readme_shows_the_quick_start_command_and_a_transcript_with_its_resu
 
 @pytest.mark.slow
 def test_the_quick_start_prints_the_header_the_readme_shows(tmp_path):
-    """Runs the quick start's command up to its first training step: the header is printed before."""
+    """Runs the quick start's command up to its first training step or its first restart's line
+    (a measured path is fitted directly, with no training step): the header is printed before."""
     from fitode.pipeline import run_job
 
     qs = quickstart()
     printed: list[str] = []
 
-    def stop(_info):
+    def stop(_info=None):
         raise KeyboardInterrupt
+
+    def log(line):
+        printed.append(line)
+        if qs.header([line]) != [line]:  # the first line after the header
+            stop()
 
     video, _, eq_file = qs.COMMAND[1:]
     with pytest.raises(KeyboardInterrupt):
-        run_job(ROOT / video, tmp_path / "qs", eq_file=str(ROOT / eq_file), log=printed.append, callback=stop)
+        run_job(ROOT / video, tmp_path / "qs", eq_file=str(ROOT / eq_file), log=log, callback=stop)
     shown = qs.header(qs.transcript_block((ROOT / "README.md").read_text()))
     # the input line names the video as the command gives it, relative to the repository
     printed = [line.replace(str(ROOT) + "/", "") for line in printed]

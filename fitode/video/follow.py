@@ -19,15 +19,19 @@ in a window around the place its last two positions predict:
 - the template follows the object slowly (UPDATE of each well-matched frame, aligned to the
   sub-pixel place first) as it turns and its lighting changes.
 
-The place read is the template's reference point: the centre of the object's mask in the seed
-frame (each pixel weighted by how much of it the object covers).
+The place read is the template's reference point: the centre of the object in the seed frame
+(each pixel weighted by how much of it the object covers), cut, once its motion is known, from
+what moves with it (_recentre): the seed's own cut is a crescent where the object covers its place
+in the static scene.
 
-The reader (fitode.video.track.TrackRecorder) takes this track only where the change detector's
-path switches between moving things and this one follows another (choose).
+The reader (fitode.video.track.TrackRecorder) takes this track where the change detector's path
+switches between moving things and this one follows another, or where both follow the same object
+and this one scatters less from frame to frame (choose).
 """
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import cv2
@@ -71,12 +75,8 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
     followed by its appearance through gray frames (T, H, W) uint8; None where no frame shows it
     clear enough to cut a template."""
     t_all = len(stack)
-    if background is None:
-        sample = np.unique(np.linspace(0, t_all - 1, min(t_all, 48)).round().astype(int))
-        background = np.median(stack[sample], axis=0).round().astype(np.uint8)
-    if noise is None:
-        noise = float(1.4826 * np.median(np.abs(stack[::max(1, t_all // 8), ::2, ::2].astype(np.int16)
-                                                - background[::2, ::2]))) + 0.5
+    if background is None or noise is None:
+        background, noise = _static(stack)
     cut = _seed(stack, seed_xy, background, noise)
     if cut is None:
         return None
@@ -163,7 +163,7 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
         xy[doubt], sigma[doubt] = np.nan, np.nan
     if np.isfinite(sigma).sum() > 1:  # the seed frame matches itself exactly: its error is like its neighbours'
         sigma[t0] = float(np.nanmedian(np.delete(sigma, t0)))
-    shift = _recentre(stack, xy, t0, cut[2], template.shape, ref, noise)
+    shift = _recentre(stack, xy, t0, template.shape, ref, noise, background)
     xy += shift
     seen = np.isfinite(xy[:, 0])
     note = (f"the object followed by its appearance (a template of {area:.0f} pixels cut from frame {t0}, "
@@ -177,10 +177,7 @@ def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
     one that keeps its look best (the median score against the seed frame's template).
     The strongest change is not always the object: legs walking behind a can on a spring change
     more; they also change their shape as they go."""
-    sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), 48)).round().astype(int))
-    background = np.median(stack[sample], axis=0).round().astype(np.uint8)
-    noise = float(1.4826 * np.median(np.abs(stack[sample[::6], ::2, ::2].astype(np.int16)
-                                            - background[::2, ::2]))) + 0.5
+    background, noise = _static(stack)
     best, rank = None, None
     for path in paths:
         if np.isfinite(path[:, 0]).sum() < 3:
@@ -199,6 +196,16 @@ def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
         if rank is None or key > rank:
             best, rank = found, key
     return best
+
+
+def _static(stack: np.ndarray) -> tuple[np.ndarray, float]:
+    """The static scene (the median of up to 48 frames spread over the clip) and the noise of a
+    frame's difference from it, as one pixel's standard deviation."""
+    sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), 48)).round().astype(int))
+    background = np.median(stack[sample], axis=0).round().astype(np.uint8)
+    noise = float(1.4826 * np.median(np.abs(stack[sample[::6], ::2, ::2].astype(np.int16)
+                                            - background[::2, ::2]))) + 0.5
+    return background, noise
 
 
 def _seed(stack, seed_xy, background, noise):
@@ -234,15 +241,23 @@ def _seed(stack, seed_xy, background, noise):
     return best, template, weight, ref, area, centre
 
 
-def _cut(frame, background, noise, near, change=None):
+def _cut(frame, background, noise, near, change=None, bridge: int = 0):
     """The object around `near` in one frame: (template, weight, ref, box, area, centre) or None
-    (change: the frame's change from the static scene, where the caller knows it better)."""
+    (change: the frame's change from the static scene, where the caller knows it better; bridge:
+    the width in pixels of the gaps closed between its parts, which then count as the object's)."""
     if change is None:
         change = cv2.absdiff(frame, background).astype(np.float32)
     h, w = change.shape
     low = 4.0 * noise
     hot = (change > low).astype(np.uint8)
     hot = cv2.morphologyEx(hot, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))  # a string, a spring: not the object
+    if bridge > 1:
+        # an object's parts the colour of what lies behind it change nothing (the light bands of a
+        # printed block on a light wall): the parts around them that do are joined across them
+        joined = cv2.morphologyEx(hot, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (bridge, bridge)))
+        bridged, hot = joined > hot, joined
+    else:
+        bridged = np.zeros(hot.shape, bool)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(cv2.dilate(hot, None), connectivity=8)
     if n < 2:
         return None
@@ -282,12 +297,13 @@ def _cut(frame, background, noise, near, change=None):
     # full cover: what the object's inside differs by at its least (a low quantile: a shaded ball
     # differs less on its lit side, and is whole there too)
     inside_px = cv2.erode(region, np.ones((3, 3), np.uint8))
-    core = change[inside_px > 0] if inside_px.sum() >= 4 else change[region > 0]
+    inside_px &= ~bridged  # a bridged gap changes nothing: it says nothing of the object's full change
+    core = change[inside_px > 0] if inside_px.sum() >= 4 else change[(region > 0) & ~bridged]
     if core.size < 2:
         return None
     full = max(float(np.quantile(core, 0.1)), low)
     cover = np.clip(change / full, 0.0, 1.0)
-    cover = np.where(filled > region, 1.0, np.where(cv2.dilate(filled, None) > 0, cover, 0.0))
+    cover = np.where((filled > region) | (bridged & (region > 0)), 1.0, np.where(cv2.dilate(filled, None) > 0, cover, 0.0))
     area = float(cover.sum())
     x0, y0 = max(bx - MARGIN, 0), max(by - MARGIN, 0)
     x1, y1 = min(bx + bw + MARGIN, w), min(by + bh + MARGIN, h)
@@ -326,47 +342,56 @@ def _aligned(new_weight, old_weight, old_ref, pad: int = 6) -> np.ndarray:
     return np.array(sub) - pad + np.asarray(old_ref, dtype=np.float64)
 
 
-def _recentre(stack, xy, t0, weight, shape, ref, noise, rounds: int = 2) -> np.ndarray:
+def _recentre(stack, xy, t0, shape, ref, noise, background) -> np.ndarray:
     """The shift (2,) from the template's reference point to the object's centre. The seed's cut
     is the change from the clip's median frame, and where the object covers its own median place
-    (a large object, a slow swing) that median holds part of it: the cut is a crescent. Once the
-    object's motion is known, each pixel's static scene is rebuilt from the frames in which the
-    template's box, moved with the object, lies away from it, and the object cut again from the
-    seed frame against it; a pixel the object never leaves counts as the object's."""
+    (a large object, a slow swing) that median holds part of it: the cut is a crescent, and which
+    part is missing moves as the object does. Once the object's motion is known, each frame's
+    change from the median frame is moved back with the object onto the seed frame, and the
+    median over up to 48 frames is what moves with the object: the whole of it, wherever it
+    stood clear of its median place in most of them (what crosses behind it does not follow it).
+    The object is cut from that, its parts joined across gaps up to a quarter of its narrower side
+    (a printed block's bands the colour of the wall change nothing)."""
     seen = np.flatnonzero(np.isfinite(xy[:, 0]))
     if len(seen) < 8 or not np.isfinite(xy[t0, 0]):
         return np.zeros(2)
     h, w = stack.shape[1:]
     sample = seen[np.unique(np.linspace(0, len(seen) - 1, min(len(seen), 48)).round().astype(int))]
     th, tw = shape
-    centre = xy[t0].copy()
-    corner = centre - ref  # the template's top-left corner in the seed frame
-    box = np.array([corner[0], corner[1], corner[0] + tw, corner[1] + th])
-    for _ in range(rounds):
-        grow = 0.5 * max(box[2] - box[0], box[3] - box[1]) + 4
-        x0, y0 = int(max(box[0] - grow, 0)), int(max(box[1] - grow, 0))
-        x1, y1 = int(min(box[2] + grow, w)), int(min(box[3] + grow, h))
-        if x1 - x0 < 3 or y1 - y0 < 3:
-            return np.zeros(2)
-        ys, xs = np.mgrid[y0:y1, x0:x1]
-        values = stack[sample, y0:y1, x0:x1].astype(np.float32)
-        for k, t in enumerate(sample):
-            dx, dy = xy[t] - xy[t0]
-            inside = (xs >= box[0] + dx - 1) & (xs <= box[2] + dx + 1) & (ys >= box[1] + dy - 1) & (ys <= box[3] + dy + 1)
-            values[k][inside] = np.nan
-        known = np.isfinite(values).sum(axis=0) >= 3
-        with np.errstate(all="ignore"):
-            clean = np.nanmedian(np.where(known[None], values, 0.0), axis=0)
-        frame = stack[t0].astype(np.float32)
+    corner = xy[t0] - ref  # the template's top-left corner in the seed frame
+    grow = max(th, tw) + 4  # the crescent may be a small part of the object: the window widens until the object fits
+    for _ in range(3):
+        x0, y0 = int(max(math.floor(corner[0]) - grow, 0)), int(max(math.floor(corner[1]) - grow, 0))
+        x1, y1 = int(min(math.ceil(corner[0]) + tw + grow, w)), int(min(math.ceil(corner[1]) + th + grow, h))
+        # at most 64 MiB of moved frames (a large object in a large frame: fewer of them)
+        few = max(8, min(len(sample), 2 ** 26 // (4 * (y1 - y0) * (x1 - x0))))
+        use = sample[np.unique(np.linspace(0, len(sample) - 1, few).round().astype(int))]
+        moved = np.empty((len(use), y1 - y0, x1 - x0), np.float32)
+        for i, t in enumerate(use):
+            dx, dy = xy[t] - xy[t0]  # the window's pixel (u, v) lies at (x0 + u + dx, y0 + v + dy) in frame t
+            m = np.array([[1.0, 0.0, x0 + dx], [0.0, 1.0, y0 + dy]])
+            moved[i] = cv2.warpAffine(cv2.absdiff(stack[t], background).astype(np.float32), m, (x1 - x0, y1 - y0),
+                                      flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                      borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
+        with warnings.catch_warnings():  # a pixel outside every frame it was moved to
+            warnings.simplefilter("ignore", RuntimeWarning)
+            follows = np.nan_to_num(np.nanmedian(moved, axis=0))
         change = np.zeros((h, w), np.float32)
-        change[y0:y1, x0:x1] = np.where(known, np.abs(frame[y0:y1, x0:x1] - clean), 255.0)
-        cut = _cut(stack[t0], None, noise, centre, change)
+        change[y0:y1, x0:x1] = follows
+        hot = cv2.morphologyEx((change > 4.0 * noise).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+        ys, xs = np.nonzero(hot)
+        if not len(xs):
+            return np.zeros(2)
+        side = min(int(np.ptp(xs)), int(np.ptp(ys))) + 1
+        cut = _cut(stack[t0], None, noise, xy[t0], change, bridge=2 * (side // 8) + 1)
         if cut is None:
             return np.zeros(2)
-        _, _, _, (bx0, by0, bx1, by1), _, found = cut
-        box = np.array([bx0, by0, bx1, by1], dtype=np.float64)
-        centre = found
-    return centre - xy[t0]
+        bx0, by0, bx1, by1 = cut[3]
+        inside = (bx0 > x0 or x0 == 0) and (by0 > y0 or y0 == 0) and (bx1 < x1 or x1 == w) and (by1 < y1 or y1 == h)
+        if inside:
+            break
+        grow *= 2
+    return cut[5] - xy[t0]
 
 
 def _find(frame, template, weight, ref, guess, reach, angle=0.0):
@@ -528,6 +553,9 @@ SWITCHES = 3          # the change detector's path is set aside where it switche
 SAME = 0.5         # ... and is not taken where it stays within the object's size of the detector's path in this share
 SEEN = 0.9         # ... and the object tracker places the object in at least this share of the frames (the
                    # position observation reads no more than a tenth of them from their neighbours)
+STEADIER = 2.0     # where both follow the same object, the object tracker's path is taken where it scatters this many times less
+PROBE = 40         # ... judged first on this many consecutive frames (following the whole clip costs more than reading it)
+CHANGE = "the change from the static scene"  # the detector's path, as the track's line names it
 
 
 def switches(path: np.ndarray, area: np.ndarray) -> int:
@@ -544,22 +572,35 @@ def switches(path: np.ndarray, area: np.ndarray) -> int:
     return int((grows & (step > np.sqrt(np.minimum(a[1:], a[:-1])))).sum())
 
 
+def scatter(path: np.ndarray) -> float:
+    """How far a path (T, 2; NaN where unseen) scatters from frame to frame about a smooth motion,
+    in pixels: the median length of its third differences over runs of four placed frames, over
+    sqrt(20) (a third difference of independent errors has 20 times their variance; a swing, a fall
+    or a bounce between frames adds little to it). NaN where under 8 runs have it."""
+    third = np.diff(path, n=3, axis=0)
+    ok = np.isfinite(third[:, 0]) & np.isfinite(third[:, 1])
+    if ok.sum() < 8:
+        return math.nan
+    return float(np.median(np.linalg.norm(third[ok], axis=1)) / math.sqrt(20.0))
+
+
 def choose(stack: np.ndarray, paths: np.ndarray, area: np.ndarray,
            found: Followed | None = None) -> tuple[np.ndarray, str, Followed | None]:
     """The track the reader takes, and one line on why: the change detector's strongest path
     (paths: (n, T, 2), fitode.video.track.measure_paths; area: (T,) its region's pixels per frame)
-    where it does not switch from one moving thing to another (fewer than SWITCHES switches: the
-    detector is at the limit on a clean scene, the real pendulums); else the object tracker's (follow_best, seeded by the detector's paths), hidden
-    frames NaN, where it places the object in at least SEEN of the frames and follows another thing
-    than the detector's path (within the object's size in under SAME of them: a small object whose
-    region flickers switches too, and both follow it): something else changes
-    more than the object for a while (legs walking behind a can) and the detector's path goes
-    from one to the other. found: the object tracker's result where the caller has it. Returns the
-    path (T, 2), the line, and the object tracker's result where its path was taken (else None)."""
-    change = "the change from the static scene"
+    where it does not switch from one moving thing to another (fewer than SWITCHES switches) and
+    the object tracker does not follow that object more steadily (_steadier); else the object
+    tracker's (follow_best, seeded by the detector's paths), hidden frames NaN, where it places the
+    object in at least SEEN of the frames and follows another thing than the detector's path
+    (within the object's size in under SAME of them: a small object whose region flickers switches
+    too, and both follow it): something else changes more than the object for a while (legs
+    walking behind a can) and the detector's path goes from one to the other. found: the object
+    tracker's result where the caller has it. Returns the path (T, 2), the line, and the object
+    tracker's result where its path was taken (else None)."""
+    change = CHANGE
     n = switches(paths[0], area)
     if n < SWITCHES:
-        return paths[0], f"{change} (its path switches between moving things {n} time{'s' if n != 1 else ''}: under {SWITCHES})", None
+        return _steadier(stack, paths[0], found, f"{change} (its path switches between moving things {n} time{'s' if n != 1 else ''}: under {SWITCHES}")
     found = follow_best(stack, paths) if found is None else found
     if found is None:
         return paths[0], f"{change} (its path switches between moving things {n} times, but the object tracker found nothing to follow)", None
@@ -567,10 +608,54 @@ def choose(stack: np.ndarray, paths: np.ndarray, area: np.ndarray,
     if seen < SEEN:
         return paths[0], (f"{change} (its path switches between moving things {n} times, but the object tracker placed the object in only "
                           f"{100 * seen:.0f}% of the frames)"), None
-    both = np.isfinite(paths[0][:, 0]) & np.isfinite(found.xy[:, 0])
-    d = paths[0][both] - found.xy[both]
-    same = float((np.linalg.norm(d - np.median(d, axis=0), axis=1) <= math.sqrt(found.area)).mean()) if both.any() else 0.0
+    same = _same(paths[0], found)
     if same >= SAME:
-        return paths[0], (f"{change} (its path switches between moving things {n} times, but the object tracker "
-                          f"follows the same object: within its size in {100 * same:.0f}% of the frames)"), None
+        return _steadier(stack, paths[0], found, (f"{change} (its path switches between moving things {n} times, but the "
+                                                  f"object tracker follows the same object: within its size in {100 * same:.0f}% of the frames"))
     return found.xy, f"{found.note}, not {change}: its path switches between moving things {n} times", found
+
+
+def _same(path: np.ndarray, found: Followed) -> float:
+    """The share of the frames both place in which the object tracker's place lies within the
+    object's size of the detector's path, once their median offset is taken out."""
+    both = np.isfinite(path[:, 0]) & np.isfinite(found.xy[:, 0])
+    if not both.any():
+        return 0.0
+    d = path[both] - found.xy[both]
+    return float((np.linalg.norm(d - np.median(d, axis=0), axis=1) <= math.sqrt(found.area)).mean())
+
+
+def _steadier(stack: np.ndarray, path: np.ndarray, found: Followed | None,
+              why: str) -> tuple[np.ndarray, str, Followed | None]:
+    """The detector's path (T, 2) where it does not switch, unless the object tracker follows the
+    same object with STEADIER times less scatter from frame to frame: the detector's centroid weighs
+    each pixel by its change, which moves with what lies behind the object and with its shading
+    (a shaded ball that falls past a textured wall: 0.1 pixel of scatter and a pixel of offset,
+    where the tracker's place scatters by 0.02), and on an object that covers its own place in the
+    static scene it is the centroid of a crescent. Judged first on PROBE frames (where the caller
+    has no object tracker's result), then on the whole clip. why: the line's start."""
+    keep = f"{why})"
+    if found is None:
+        seen = np.flatnonzero(np.isfinite(path[:, 0]))
+        if len(seen) < 8:
+            return path, keep, None
+        middle = int(np.median(seen))
+        a = max(0, min(middle - PROBE // 2, len(path) - PROBE))
+        stretch = slice(a, a + PROBE)
+        background, noise = _static(stack)
+        probe = follow_object(stack[stretch], path[stretch], background, noise)
+        if probe is None or not scatter(probe.xy) * STEADIER <= scatter(path[stretch]):
+            return path, keep, None
+        found = follow_object(stack, path, background, noise)
+    if found is None:
+        return path, f"{why}; the object tracker found nothing to follow)", None
+    seen = float(np.isfinite(found.xy[:, 0]).mean())
+    if seen < SEEN:
+        return path, f"{why}; the object tracker placed it in only {100 * seen:.0f}% of the frames)", None
+    if _same(path, found) < SAME:
+        return path, f"{why}; the object tracker follows another object)", None
+    mine, theirs = scatter(found.xy), scatter(path)
+    if not mine * STEADIER <= theirs:
+        return path, f"{why}; the object tracker follows it with {mine:.2g} px of scatter from frame to frame, the change with {theirs:.2g})", None
+    return found.xy, (f"{found.note}, not {CHANGE}: both follow the same object, with {mine:.2g} px of scatter from "
+                      f"frame to frame against the change's {theirs:.2g}"), found
