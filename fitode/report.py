@@ -117,9 +117,12 @@ def understanding_lines(ode, spec, analysis, clip, plan) -> list[str]:
 
 def length_lines(observation) -> list[str]:
     """How a measured length reads: source pixels (y up), or metres through a scale stick."""
-    if not observation.reads_lengths:
-        return []
     lengths = observation.lengths
+    if not observation.reads_lengths:
+        if lengths.metres_per_px:
+            return [f"lengths: --scale is not used: the {observation.name} observation reads no length on the frames "
+                    "(--observe position measures the state in metres)"]
+        return []
     if lengths.metres_per_px:
         return [f"lengths: in metres (x right, y up), {1000 * lengths.metres_per_px:.5g} mm per source pixel "
                 f"from --scale (±{100 * lengths.relative_std:.2g}%)"]

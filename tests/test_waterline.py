@@ -85,3 +85,20 @@ def test_the_level_observation_reads_the_readers_water_line_in_source_pixels():
     assert np.corrcoef(z, -truth)[0, 1] > 0.9999  # up is minus the image's row
     assert f"travelling {np.ptp(xy[:, 1]):.1f} source pixels" in prepared.note
     assert prepared.drawing["space"] == "source" and len(prepared.drawing["track"]) == len(xy)
+
+
+def test_a_change_that_travels_across_is_no_water_line():
+    # a band of water grows up and down; a cart rolling along a bench read as one (a generated
+    # bumper cart at 240x135 was: its x barely moved, "a 0 px/s^2"): the same frames of a tank, with
+    # the detector's path running across instead of up and down, are no water line
+    from fitode.video.track import _noise, _sample
+    from fitode.video.waterline import read_line
+    frames, truth = _drain(1)
+    paths, _ = measure_paths(frames, 1)
+    sample = _sample(len(frames))
+    background = np.median(frames[sample], axis=0).round().astype(np.uint8)
+    noise = _noise(frames[sample[::6]], background)
+    assert read_line(frames, paths[0], sample, background, noise) is not None
+    across = paths[0].copy()
+    across[:, 0] = np.linspace(20, 140, len(across))
+    assert read_line(frames, across, sample, background, noise) is None

@@ -39,6 +39,8 @@ THROWN = 4.0      # ... and thrown (a speed of its own) where that leaves this m
 HOLD_SHARE = 0.03  # a first or last piece that travels less than this share of the longest is a hold or a stop
 SIDE_S = 0.12     # seconds each side a velocity is read from, SIDE_FRAMES frames at least and at most
 SIDE_FRAMES = (3, 12)
+SCALES = (1, 2, 3)  # ... and from this many times as many (see impacts), where a parabola each side
+PARABOLIC = 2.0    # ... misses its frames by at most this many times the noise
 GAP = 1           # ... leaving out this many at the frame: the impact falls between two frames
 KINK = 4.0        # ... and no smooth motion runs through the frames around it: a quartic across both
 #                   sides misses them by this many times the noise (a swing's turning point, read
@@ -127,10 +129,15 @@ def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tu
     jump is where they differ by JUMP times their noise (exact for a parabola's fit) and point
     opposite ways, each MOVING times that noise fast (a bounce turns the motion round; a release
     starts from rest and a swing's turning point is as slow either side); the local largest of such
-    frames, with the GAP frames either side, is the impact."""
+    frames, with the GAP frames either side, is the impact. The velocities are read again from
+    SCALES times as many frames (at most SIDE_FRAMES' largest): a slow bounce (a cart's fourth,
+    0.7 m/s at 30 fps) is lost in the noise of a few frames' velocity and plain in that of many,
+    and a jump at any of those lengths counts."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     SIDE = _side(dt)
-    score = _jumps(x, noise, lo, hi, SIDE, JUMP, guard=True)
+    sides = sorted({min(k * SIDE, SIDE_FRAMES[1]) for k in SCALES})
+    score = np.max([_jumps(x, noise, lo, hi, side, JUMP, guard=True, parabolic=side > SIDE) for side in sides],
+                   axis=0)
     out: list[tuple[int, int]] = []
     for i in np.flatnonzero(score > 0):
         if score[i] < score[max(i - SIDE, 0):i + SIDE + 1].max():
@@ -141,9 +148,12 @@ def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tu
     return out
 
 
-def _jumps(x: np.ndarray, noise: float, lo: int, hi: int, SIDE: int, jump: float, guard: bool) -> np.ndarray:
+def _jumps(x: np.ndarray, noise: float, lo: int, hi: int, SIDE: int, jump: float, guard: bool,
+           parabolic: bool = False) -> np.ndarray:
     """Each frame's velocity jump in units of its noise where it is an impact (see impacts: over
-    `jump`, turning round, fast either side and, with guard, at a corner), else 0."""
+    `jump`, turning round, fast either side and, with guard, at a corner), else 0. parabolic: only
+    where each side's parabola misses its frames by at most PARABOLIC times the noise (read from
+    many frames, a swing's velocity is bent by its turn, and a quartic no longer follows it)."""
     score = np.zeros(len(x))
     if hi - lo < 2 * (SIDE + GAP) + 1:
         return score
@@ -160,6 +170,9 @@ def _jumps(x: np.ndarray, noise: float, lo: int, hi: int, SIDE: int, jump: float
         # turning point (as slow on both sides) does not
         ok = (gap > jump * sigma) & (va * vb < 0) & (np.minimum(np.abs(va), np.abs(vb)) > MOVING * sigma)
         if not ok.any() or guard and not _kinked(x[i - GAP - SIDE + 1:i + GAP + SIDE], SIDE, noise):
+            continue
+        if parabolic and max(_rms(_parabola_residual(x[i - GAP - SIDE + 1:i - GAP + 1])),
+                             _rms(_parabola_residual(x[i + GAP:i + GAP + SIDE]))) > PARABOLIC * noise:
             continue  # no jump, or one smooth motion turns round here: no impact
         score[i] = float((gap * ok).max()) / sigma
     return score
