@@ -232,3 +232,20 @@ def test_a_small_swing_whose_string_sweeps_more_than_its_bob_travels_still_swing
     assert not Look(**shrunk).moves and not Look(**shrunk).swings
     assert Look(**shrunk, followed=6.0).swings
     assert not Look(**{**shrunk, "gap": 40.0}, followed=6.0).swings  # one pattern that brightens: a lamp
+
+
+def test_the_look_fits_its_circle_only_when_asked_whether_the_path_swings(monkeypatch):
+    """A path that runs one way is decided without the robust circle fit (nor scipy's import); a
+    back-and-forth one fits it once, from the points the look kept, and swings as before."""
+    from fitode.train.observe import auto
+    fits = []
+    monkeypatch.setattr(auto, "fit_circle", lambda xy: fits.append(len(xy)) or fit_circle(xy))
+    a = np.radians(20) * np.cos(np.linspace(0, 8 * np.pi, 200))
+    arc = np.column_stack([200 + 215 * np.sin(a), 20 + 215 * np.cos(a)])
+    arc += np.random.default_rng(0).normal(0, 0.3, arc.shape)
+    line = np.column_stack([np.linspace(0, 100, 200), np.linspace(0, 50, 200)])
+    one_way = auto.Look(travel=110.0, size=5.0, one_way=0.99, bent=line)
+    assert one_way.moves and not one_way.swings and fits == [] and one_way.circle is None
+    swing = auto.Look(travel=140.0, size=5.0, one_way=0.05, bent=arc)
+    assert swing.swings and swing.swings and fits == [200]
+    assert swing.arc().radius == pytest.approx(215, rel=1e-3)
