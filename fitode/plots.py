@@ -291,7 +291,8 @@ def plot_frames(path: str | Path, frames, dt: float, n: int = 8, t0: float = 0.0
     blank = np.full((h, gap, 3) if colour else (h, gap), np.nan, dtype=np.float32)
     strip = np.concatenate([part for tile in tiles for part in (tile, blank)][:-1], axis=1)
     per = min(1.6 * max(w / h, 0.5), 14.0 / len(idx))  # inches per frame; the strip stays under ~14 in
-    fig = _figure(figsize=(per * len(idx), max(per * h / w, 1.0) + 0.7))
+    wide = per * len(idx)
+    fig = _figure(figsize=(wide, max(wide * h / strip.shape[1], 0.3) + 0.7))  # the strip's own height, titles above
     ax = fig.subplots()
     if colour:  # the gaps white, as the page
         ax.imshow(np.where(np.isnan(strip), 1.0, strip))
@@ -303,6 +304,8 @@ def plot_frames(path: str | Path, frames, dt: float, n: int = 8, t0: float = 0.0
                                       facecolor="none", edgecolor="black", linewidth=0.8))
     for k, i in enumerate(idx):
         ax.text(k * (w + gap) + (w - 1) / 2, -1, f"t={t0 + i * dt:.2f}s", ha="center", va="bottom", fontsize=8)
+    ax.set_xlim(-1.0, strip.shape[1])  # the borders inside the axes
+    ax.set_ylim(h, -1.0)
     ax.set_axis_off()
     fig.suptitle(f"preprocessed frames ({total} frames of {w}x{h} pixels (WxH), dt {dt:.4g} s)", fontsize=9)
     return _save(fig, path)
