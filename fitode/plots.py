@@ -17,10 +17,10 @@ DPI = 110
 
 
 def _figure(pyplot: bool = False, **kw):
-    """A matplotlib Figure with a constrained layout, worked out once as it is drawn (tight_layout
-    drew every figure twice). The files are drawn without pyplot: its import and figure manager
-    cost a third of a second a run and no window is shown; pyplot: a figure pyplot manages, for
-    a user's session (Result.plot), where plt.show() shows it."""
+    """A matplotlib Figure whose layout engine (constrained) runs as it is saved, with no call of
+    its own. The files are drawn without pyplot: its import and figure manager cost about a third
+    of a second a run and no window is shown; pyplot: a figure pyplot manages, for a user's session
+    (Result.plot), where plt.show() shows it."""
     if pyplot:
         import matplotlib.pyplot as plt
         return plt.figure(layout="constrained", **kw)
@@ -277,7 +277,8 @@ def plot_loss(path: str | Path, runs: Sequence[Mapping[str, Any]]) -> Path:
 
 def plot_frames(path: str | Path, frames, dt: float, n: int = 8, t0: float = 0.0) -> Path:
     """A strip of n frames evenly spread over the clip, after preprocessing, with their times: one
-    image of the frames side by side (one axes draws and lays out in a fraction of n)."""
+    image of the frames side by side (one axes lays out and draws in about two thirds of the time
+    of one axes per frame)."""
     x = np.asarray(frames.detach().cpu() if hasattr(frames, "detach") else frames, dtype=np.float32)
     if x.ndim == 3:
         x = x[:, None]
