@@ -5,7 +5,7 @@ import pytest
 from fitode.eqparse import parse
 from fitode.synth.scenes import _flights
 from fitode.train.joint import disagreement, fit_pieces
-from fitode.train.pieces import Pieces, find_pieces, impacts
+from fitode.train.pieces import Event, Pieces, find_pieces, impacts
 
 DT = 1 / 60
 
@@ -64,6 +64,22 @@ def test_a_cart_at_30_fps_has_every_slow_bounce_found():
         assert len(found) == 5
         for (i, j), tb in zip(found, times[:-1]):
             assert i - 1 <= (tb + 0.5) / dt <= j + 1
+
+
+def test_a_throw_that_leaves_the_view_ends_there_and_is_no_bounce_into_what_follows():
+    # a 240 fps throw cropped so that the ball leaves the view: the reader then follows the flicker
+    # of a ruler's marks, 40 pixels above; that jump of place (with a velocity that turned round)
+    # was taken for a bounce, and the flicker for a second flight (g 5.49 for 9.81, ambiguous)
+    dt, n, hold, gone = 1 / 240, 240, 24, 150
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        tf = np.clip(np.arange(n) * dt - hold * dt, 0, None)
+        y = -198 + 750 * tf - 0.5 * 1880 * tf ** 2
+        y[gone:] = -20 + rng.normal(0, 3, n - gone) + 10 * (rng.random(n - gone) < 0.3)
+        y = y + rng.normal(0, 0.05, n)
+        pieces = find_pieces(y[:, None], dt, parabola_fit(y))
+        assert pieces.spans == [(hold + 1, gone)]
+        assert [e.kind for e in pieces.events] == ["hold", "release", "lost"]
 
 
 def test_find_pieces_cuts_the_hold_and_every_bounce_and_says_so():
@@ -236,3 +252,36 @@ def test_a_throw_is_released_at_its_launch_not_at_its_top():
     landed = np.concatenate([y[:55], np.full(6, y[54]) + np.random.default_rng(4).normal(0, 0.1, 6)])
     pieces = find_pieces(landed[:, None], dt, parabola_fit(landed))
     assert "comes to rest at" in pieces.describe(dt, n_frames=len(t)), pieces.describe(dt, n_frames=len(t))
+
+
+def test_pieces_of_another_motion_are_left_out_and_said():
+    # a ball's flights (g 9.6 each), then it rolls on the floor and a hand carries it (one
+    # trajectory explains each, with g near 0): those are another motion, not a disagreement
+    from fitode.train.joint import JointFit, other_motions
+    flights = [{"g": [8.6, 0.26]}, {"g": [9.63, 0.07]}, None, {"g": [-0.48, 0.26]}, {"g": [-0.02, 0.02]}]
+    fit = JointFit({"g": -0.13}, {"g": 0.1}, 0.3, np.zeros((1, 1)), flights)
+    assert other_motions(fit, released=True) == [3, 4]
+    assert other_motions(fit) == []  # two against two, and no release to say which is the motion
+    cart = [{"a": [0.595, 0.003]}, {"a": [0.598, 0.002]}, {"a": [0.604, 0.004]}, {"a": [0.61, 0.002]}]
+    assert other_motions(JointFit({"a": 0.6}, {"a": 0.001}, 0.1, np.zeros((1, 1)), cart), released=True) == []
+    pieces = Pieces([(66, 74), (79, 91), (94, 101), (117, 171), (179, 216)],
+                    [Event(66, "hold"), Event(66, "release"), Event(76, "bounce"), Event(92, "bounce"),
+                     Event(102, "bounce"), Event(175, "bounce")], 0.1)
+    kept = pieces.without([3, 4])
+    assert kept.spans == pieces.spans[:3] and kept.left_out == [(117, 171), (179, 216)]
+    assert [e.kind for e in kept.events] == ["hold", "release", "bounce", "bounce", "lost"]
+    text = kept.describe(1 / 30, n_frames=216)
+    assert "3 flights between 2 bounces" in text and "left out as another motion: 3.90-5.70 s, 5.97-7.20 s" in text
+    assert Pieces.from_dict(kept.to_dict(1 / 30, 216)).left_out == kept.left_out
+
+
+def test_a_slow_drain_is_no_hold():
+    # a level falling 7 pixels in 4.9 s, read with 0.07 pixels of noise: every 0.2 s window is
+    # still, the whole clip is not; it was "held still until 4.72 s" and fitted on its last 11 frames
+    dt = 1 / 60
+    t = np.arange(294) * dt
+    h = (np.sqrt(60.0) - 0.12 * t) ** 2
+    for seed in range(3):
+        x = h + np.random.default_rng(seed).normal(0, 0.07, len(t))
+        pieces = find_pieces(x[:, None], dt, parabola_fit(x))
+        assert pieces.spans == [(0, len(t))] and not any(e.kind == "hold" for e in pieces.events)

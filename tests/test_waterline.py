@@ -102,3 +102,24 @@ def test_a_change_that_travels_across_is_no_water_line():
     across = paths[0].copy()
     across[:, 0] = np.linspace(20, 140, len(across))
     assert read_line(frames, across, sample, background, noise) is None
+
+
+def test_a_line_that_jumps_between_edges_is_no_water_line(monkeypatch):
+    # a generated slow drain's line was read at rows 40-42, then 53-58, then 44 (three edges):
+    # k 0.025 for 0.010, not trustworthy; such a reading is left to the level's own
+    import fitode.video.waterline as waterline
+    from fitode.video.track import _noise, _sample
+    frames, truth = _drain(2)
+    paths, _ = measure_paths(frames, 1)
+    sample = _sample(len(frames))
+    background = np.median(frames[sample], axis=0).round().astype(np.uint8)
+    noise = _noise(frames[sample[::6]], background)
+    assert waterline.read_line(frames, paths[0], sample, background, noise) is not None
+    read = waterline._near_anchor
+
+    def jumpy(*args):
+        rows = read(*args).copy()
+        rows[len(rows) // 3:2 * len(rows) // 3] += 12.0  # another edge for a third of the clip
+        return rows
+    monkeypatch.setattr(waterline, "_near_anchor", jumpy)
+    assert waterline.read_line(frames, paths[0], sample, background, noise) is None

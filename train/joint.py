@@ -31,6 +31,8 @@ from .interval import CENTRE_ITERATIONS, _Batch
 SIGMAS = 3.0
 APART = 0.02
 OTHERS = 3  # a piece is measured against the others' scatter where there are this many
+FAR = 0.5   # a piece whose constant lies this share of the pieces' median from it (and SIGMAS of its error)
+#             is another motion, where fewer than half the pieces are (other_motions)
 
 
 @dataclass
@@ -68,6 +70,28 @@ def fit_pieces(system, params: Mapping, x: np.ndarray, dt: float, spans: Sequenc
     own = {n: [p[n] for p in alone if p is not None] for n in values}
     return JointFit(values, errors, misfit, fitted, alone,
                     {n: _pooled(own[n])[2] if len(own[n]) >= OTHERS else 1.0 for n in values})
+
+
+def other_motions(fit: JointFit, released: bool = False) -> list[int]:
+    """The pieces that follow another motion than the rest: one trajectory of the equation explains
+    each, but with constants FAR from the centre of the pieces' own (a ball rolling on the floor
+    after its bounces, y'' = -g with g near 0 against 9.6 from its flights; a hand that picks it up),
+    beyond SIGMAS of its error. The centre: the first piece's where it starts at a release (the
+    motion the clip shows starts there), else the median of three or more pieces, and then only
+    fewer than half may be another motion. A scatter of a few percent (a tracker's error that
+    depends on the place) is the disagreement's finding, not this."""
+    idx = [k for k, p in enumerate(fit.alone) if p is not None]
+    anchored = released and fit.alone and fit.alone[0] is not None
+    if len(idx) < (2 if anchored else 3):
+        return []
+    out: set[int] = set()
+    for name in fit.values:
+        v = np.array([fit.alone[k][name][0] for k in idx])
+        e = np.array([fit.alone[k][name][1] for k in idx])
+        centre = float(fit.alone[0][name][0]) if anchored else float(np.median(v))
+        far = (np.abs(v - centre) > FAR * abs(centre)) & (np.abs(v - centre) > SIGMAS * e)
+        out.update(k for k, f in zip(idx, far) if f)
+    return sorted(out) if anchored or 2 * len(out) < len(idx) else []
 
 
 def _pooled(pairs) -> tuple[float, float, float]:

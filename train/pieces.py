@@ -28,7 +28,7 @@ from typing import Callable
 
 import numpy as np
 
-from .stretch import BREAK, MIN_SEED, REST_SIGMAS, TOL, at_rest, find_stretch, noise_level
+from .stretch import BREAK, MIN_SEED, REST_SECONDS, REST_SIGMAS, TOL, at_rest, find_stretch, noise_level
 
 JUMP = 6.0        # an impact: the velocities either side of a frame differ by this many times their noise
 MOVING = 2.0      # ... and turn round, at least this many times that noise fast either side
@@ -42,6 +42,8 @@ SIDE_FRAMES = (3, 12)
 SCALES = (1, 2, 3)  # ... and from this many times as many (see impacts), where a parabola each side
 PARABOLIC = 2.0    # ... misses its frames by at most this many times the noise
 GAP = 1           # ... leaving out this many at the frame: the impact falls between two frames
+PLACE = 6.0       # ... and the place either side's parabola gives at the frame differs by at most this
+#                   many times its noise beyond what the jump moves it in GAP frames (no jump of place)
 KINK = 4.0        # ... and no smooth motion runs through the frames around it: a quartic across both
 #                   sides misses them by this many times the noise (a swing's turning point, read
 #                   from coarse frames, has sides whose parabolas disagree, but a quartic follows it),
@@ -80,6 +82,20 @@ class Pieces:
     spans: list[tuple[int, int]]
     events: list[Event] = field(default_factory=list)
     noise: float = 0.0
+    # stretches one trajectory explains whose constants are another motion's (train/joint.py,
+    # other_motions: a ball rolling on the floor, a hand), left out of the fit: [start, end) frames
+    left_out: list[tuple[int, int]] = field(default_factory=list)
+
+    def without(self, drop: list[int]) -> "Pieces":
+        """These pieces less those at the indices drop, which are said as left out; where they
+        follow the last kept piece, the motion is lost there, and their events go with them."""
+        kept = [s for i, s in enumerate(self.spans) if i not in drop]
+        gone = [s for i, s in enumerate(self.spans) if i in drop]
+        end = kept[-1][1]
+        events = [e for e in self.events if e.frame <= end + GAP + 1 or e.kind in ("hold", "moved", "release")]
+        if gone[-1][1] > end:  # the last pieces are another motion: the equation's ends with the last kept
+            events = [e for e in events if e.frame < end] + [Event(end, "lost")]
+        return Pieces(kept, events, self.noise, self.left_out + gone)
 
     def describe(self, dt: float, t0: float = 0.0, n_frames: int | None = None) -> str:
         """The pieces and their events in one line, times from t0 seconds at frame 0."""
@@ -102,6 +118,8 @@ class Pieces:
         else:
             words.append(f"one trajectory from {t(self.spans[0][0])} to {t(self.spans[0][1])}" if self.spans
                          else "no stretch that one trajectory explains")
+        if self.left_out:
+            words.append("left out as another motion: " + ", ".join(f"{t(a)[:-2]}-{t(b)}" for a, b in self.left_out))
         end = next((e for e in self.events if e.kind in ("stop", "lost")), None)
         if end is not None:
             words.append(("comes to rest at " if end.kind == "stop" else "leaves the trajectory at ") + t(end.frame))
@@ -113,12 +131,14 @@ class Pieces:
         """Plain data (meta["pieces"]): frames of the fitted frames, end exclusive, and seconds."""
         return {"pieces": [[a, b] for a, b in self.spans], "pieces_s": [[a * dt, b * dt] for a, b in self.spans],
                 "events": [e.to_dict(dt) for e in self.events], "n_frames": n_frames,
-                "summary": self.describe(dt, 0.0, n_frames), "noise": self.noise}
+                "summary": self.describe(dt, 0.0, n_frames), "noise": self.noise,
+                "left_out": [[a, b] for a, b in self.left_out]}
 
     @classmethod
     def from_dict(cls, d) -> "Pieces":
         return cls([(int(a), int(b)) for a, b in d.get("pieces", ())],
-                   [Event(int(e["frame"]), str(e["kind"])) for e in d.get("events", ())], float(d.get("noise", 0.0)))
+                   [Event(int(e["frame"]), str(e["kind"])) for e in d.get("events", ())], float(d.get("noise", 0.0)),
+                   [(int(a), int(b)) for a, b in d.get("left_out", ())])
 
 
 def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tuple[int, int]]:
@@ -136,7 +156,7 @@ def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tu
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     SIDE = _side(dt)
     sides = sorted({min(k * SIDE, SIDE_FRAMES[1]) for k in SCALES})
-    score = np.max([_jumps(x, noise, lo, hi, side, JUMP, guard=True, parabolic=side > SIDE) for side in sides],
+    score = np.max([_jumps(x, noise, lo, hi, side, JUMP, guard=True, parabolic=True) for side in sides],
                    axis=0)
     out: list[tuple[int, int]] = []
     for i in np.flatnonzero(score > 0):
@@ -162,6 +182,11 @@ def _jumps(x: np.ndarray, noise: float, lo: int, hi: int, SIDE: int, jump: float
     after = _slope_weights(t + GAP)
     before = -_slope_weights(t + GAP)[::-1]
     sigma = noise * math.sqrt(float(after @ after + before @ before))
+    # and the place at the frame from each side: a bounce keeps it (the thing turns round where it
+    # is); a path that jumps to something else (a ball gone from view, then the ruler's flicker) does not
+    at_after = _value_weights(t + GAP)
+    at_before = _value_weights(t + GAP)[::-1]
+    sigma_at = noise * math.sqrt(float(at_after @ at_after + at_before @ at_before))
     for i in range(lo + SIDE + GAP, hi - SIDE - GAP + 1):
         va = after @ x[i + GAP:i + GAP + SIDE]
         vb = before @ x[i - GAP - SIDE + 1:i - GAP + 1]
@@ -169,6 +194,9 @@ def _jumps(x: np.ndarray, noise: float, lo: int, hi: int, SIDE: int, jump: float
         # a bounce turns the motion round, fast either side: a release (from rest) or a swing's
         # turning point (as slow on both sides) does not
         ok = (gap > jump * sigma) & (va * vb < 0) & (np.minimum(np.abs(va), np.abs(vb)) > MOVING * sigma)
+        xa = at_after @ x[i + GAP:i + GAP + SIDE]
+        xb = at_before @ x[i - GAP - SIDE + 1:i - GAP + 1]
+        ok &= np.abs(xa - xb) <= gap * GAP + PLACE * sigma_at  # the impact anywhere within the GAP frames
         if not ok.any() or guard and not _kinked(x[i - GAP - SIDE + 1:i + GAP + SIDE], SIDE, noise):
             continue
         if parabolic and max(_rms(_parabola_residual(x[i - GAP - SIDE + 1:i - GAP + 1])),
@@ -204,6 +232,12 @@ def _smooth_misfit(y: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(a @ coef - y))))
 
 
+def _value_weights(t: np.ndarray) -> np.ndarray:
+    """w such that w @ y is the value at t = 0 of the parabola least-squares fitted to y at times t."""
+    a = np.stack([np.ones_like(t), t, t * t], axis=1)
+    return np.linalg.pinv(a)[0]
+
+
 def _slope_weights(t: np.ndarray) -> np.ndarray:
     """w such that w @ y is the slope at t = 0 of the parabola least-squares fitted to y at times t."""
     a = np.stack([np.ones_like(t), t, t * t], axis=1)
@@ -219,7 +253,7 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     T = len(x)
     noise_all = noise_level(x)
-    rest = at_rest(x, dt, noise_all)
+    rest = _still(x, at_rest(x, dt, noise_all), noise_all, dt)
     moving = np.flatnonzero(~rest)
     if len(moving) == 0:
         return Pieces([], [Event(0, "hold")], noise_all)
@@ -359,6 +393,26 @@ def _widened(cuts: list[tuple[int, int]], unread: np.ndarray) -> list[tuple[int,
             out[-1] = (out[-1][0], b)
         else:
             out.append((a, b))
+    return out
+
+
+def _still(x: np.ndarray, rest: np.ndarray, noise: float, dt: float) -> np.ndarray:
+    """rest less an opening rest that drifts, over its whole length, beyond REST_SIGMAS noise
+    spreads (its 2nd to 98th percentile): each short window of a slow drain is still, but a drain
+    that falls 100 noise spreads over the clip is no hold (a generated one was "held still until
+    4.72 s" and fitted on its last 11 frames, k 0.041 for 0.010). A closing rest stays one: a
+    thing that lies still and is then slowly picked up is no motion of the equation."""
+    moving = np.flatnonzero(~rest)
+    end = len(x) if len(moving) == 0 else int(moving[0])
+    # (a rest's last window of frames may hold the first of the motion: at_rest marks whole windows)
+    held = end - (0 if len(moving) == 0 else max(3, int(round(REST_SECONDS / dt))))
+    if held < RELEASE_MIN:
+        return rest
+    lo, hi = np.percentile(x[:held], [2, 98], axis=0)
+    if float(np.max(hi - lo)) <= REST_SIGMAS * noise:
+        return rest
+    out = rest.copy()
+    out[:end] = False
     return out
 
 

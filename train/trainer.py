@@ -35,7 +35,7 @@ from .selection import select_runs, selection
 from .starts import CANDIDATES, data_starts
 from .direct import full_fit, fit_path, fitted_path, orientation, screen
 from .steps import settle_substeps
-from .joint import disagreement, fit_pieces
+from .joint import disagreement, fit_pieces, other_motions
 from .pieces import Pieces, find_pieces
 from .stretch import MIN_SEED, Stretch, find_stretch
 from .threads import torch_threads as _threads  # the fit's threads (config.threads)
@@ -434,6 +434,8 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
             unread = np.zeros(n, dtype=bool)
             unread[[i for i in mended if i < n]] = True
             pieces = find_pieces(latent[:n], plan.dt, fit, unread=unread)
+            if len(pieces.spans) > 1 and plan.observation.measured:
+                pieces = _one_motion(latent[:n], pieces, plan, warm)
             found = _longest(latent[:n], pieces, plan.dt) if pieces.spans else find_stretch(latent[:n], plan.dt, fit)
             if not pieces.spans:
                 pieces = None
@@ -442,6 +444,19 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
     if found.start == 0 and found.end == n:
         record["reason"] = "one trajectory of the equation explains the whole clip"
     return (found.start, found.end), record, pieces
+
+
+def _one_motion(x: np.ndarray, pieces: Pieces, plan: FitPlan, start: Mapping[str, float]) -> Pieces:
+    """The pieces less those whose own constants are another motion's (joint.other_motions: a
+    ball rolling on the floor after its bounces, then a hand): a measured path's pieces, fitted
+    each alone from the windows' constants, before the runs choose their stretch among them."""
+    config = plan.config
+    joint = fit_pieces(plan.system, plan.params, x, plan.dt, pieces.spans, start,
+                       integrator=config.integrator, substeps=config.substeps)
+    if joint is None:
+        return pieces
+    drop = other_motions(joint, released=any(e.kind == "release" for e in pieces.events))
+    return pieces.without(drop) if drop else pieces
 
 
 def _longest(x: np.ndarray, pieces: Pieces, dt: float) -> Stretch:

@@ -34,6 +34,8 @@ GAP = 2           # rows below the threshold a band may bridge (a graduation mar
 INSIDE = (2, 8)   # the rows inside the moving end whose change is the band's step (its plateau)
 QUIET = 3         # rows under half the step that end the band outward
 COLUMNS = 0.5     # the tank's columns: those around the path changing at least this share of its column
+STEADY = 10.0     # a line moves steadily: no step between frames read beyond this many times the median step
+#                   (and twice ANCHOR)
 
 
 def read_line(stack: np.ndarray, path: np.ndarray, sample: np.ndarray, background: np.ndarray,
@@ -74,6 +76,9 @@ def read_line(stack: np.ndarray, path: np.ndarray, sample: np.ndarray, backgroun
     rows, step = _edges(change, runs, end, moving)
     edged = int(np.isfinite(rows).sum())
     rows = _near_anchor(change, rows, step, anchor)
+    steps = np.abs(np.diff(rows[np.isfinite(rows)]))
+    if len(steps) and steps.max() > STEADY * float(np.median(steps)) + 2 * ANCHOR:
+        return None  # a line that jumps between edges (a generated slow drain's read 40, 57, then 44) is none
     # the change the detector followed is this band: its centroid lies between the line and the
     # line's median place (a frame or a few where the band vanishes take something else)
     both = np.isfinite(rows) & seen
