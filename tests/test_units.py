@@ -80,21 +80,21 @@ def test_lengths_on_shrunk_frames_are_in_source_pixels():
     assert Lengths(metres_per_px=0.01).factor((0.0, 1.0)) == pytest.approx(0.01) and Lengths(metres_per_px=0.01).unit == "m"
 
 
-def test_a_scale_stick_makes_a_short_tracked_motion_a_measured_length(monkeypatch):
+def test_a_short_tracked_motion_named_along_an_axis_is_a_measured_length(monkeypatch):
     # a cart's last flight alone: 27 pixels up and back, less than the change's size in the shrunk
     # frames (the cart and its ghost in the median), while the tracked cart travels 5 times its own
-    # size; with a scale stick auto measures it, without one it stays the paper's free encoder
+    # size: auto measures it (it was the paper's free encoder, "latent units", a scale stick dropped)
     import fitode.train.observe.auto as auto
     from fitode.report import length_lines
     monkeypatch.setattr(auto, "look", lambda frames, track=None: auto.Look(6.0, 9.0, 0.1, followed=5.4))
-    system = parse("x'' = -a")
     frames = torch.zeros(40, 1, 8, 8)
-    scaled = resolve_observation(None, system, frames, scaled=True)
-    assert scaled.name == "position" and "a scale stick was given" in scaled.reason
-    plain = resolve_observation(None, system, frames)
+    chosen = resolve_observation(None, parse("x'' = -a"), frames)
+    assert chosen.name == "position" and "the tracked object moves 5.4x its own size" in chosen.reason
+    # a state named for no image axis stays the paper's free encoder, and a scale it cannot use is
+    # said, not dropped silently
+    plain = resolve_observation(None, parse("q'' = -a"), frames)
     assert plain.name == "any"
-    # a scale the observation cannot use is said, not dropped silently
     plain.use_lengths(Lengths(metres_per_px=0.003))
     assert length_lines(plain) and "--scale is not used" in length_lines(plain)[0]
     monkeypatch.setattr(auto, "look", lambda frames, track=None: auto.Look(6.0, 9.0, 0.1, followed=0.5))
-    assert resolve_observation(None, system, frames, scaled=True).name == "any"  # the object barely moves
+    assert resolve_observation(None, parse("x'' = -a"), frames).name == "any"  # the object barely moves

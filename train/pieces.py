@@ -171,21 +171,19 @@ def impacts(x: np.ndarray, noise: float, lo: int, hi: int, dt: float) -> list[tu
 def _jumps(x: np.ndarray, noise: float, lo: int, hi: int, SIDE: int, jump: float, guard: bool,
            parabolic: bool = False) -> np.ndarray:
     """Each frame's velocity jump in units of its noise where it is an impact (see impacts: over
-    `jump`, turning round, fast either side and, with guard, at a corner), else 0. parabolic: only
-    where each side's parabola misses its frames by at most PARABOLIC times the noise (read from
-    many frames, a swing's velocity is bent by its turn, and a quartic no longer follows it)."""
+    `jump`, turning round, fast either side, in its place and, with guard, at a corner), else 0.
+    parabolic: only where each side's parabola misses its frames by at most PARABOLIC times the
+    noise."""
     score = np.zeros(len(x))
     if hi - lo < 2 * (SIDE + GAP) + 1:
         return score
     t = np.arange(SIDE, dtype=np.float64)
     # the velocity at the frame from the SIDE frames after it (starting GAP frames on), and before it
-    after = _slope_weights(t + GAP)
-    before = -_slope_weights(t + GAP)[::-1]
+    at_after, after = _at_zero(t + GAP)
+    at_before, before = at_after[::-1], -after[::-1]
     sigma = noise * math.sqrt(float(after @ after + before @ before))
     # and the place at the frame from each side: a bounce keeps it (the thing turns round where it
     # is); a path that jumps to something else (a ball gone from view, then the ruler's flicker) does not
-    at_after = _value_weights(t + GAP)
-    at_before = _value_weights(t + GAP)[::-1]
     sigma_at = noise * math.sqrt(float(at_after @ at_after + at_before @ at_before))
     for i in range(lo + SIDE + GAP, hi - SIDE - GAP + 1):
         va = after @ x[i + GAP:i + GAP + SIDE]
@@ -198,10 +196,11 @@ def _jumps(x: np.ndarray, noise: float, lo: int, hi: int, SIDE: int, jump: float
         xb = at_before @ x[i - GAP - SIDE + 1:i - GAP + 1]
         ok &= np.abs(xa - xb) <= gap * GAP + PLACE * sigma_at  # the impact anywhere within the GAP frames
         if not ok.any() or guard and not _kinked(x[i - GAP - SIDE + 1:i + GAP + SIDE], SIDE, noise):
-            continue
+            continue  # no jump, or one smooth motion turns round here: no impact
         if parabolic and max(_rms(_parabola_residual(x[i - GAP - SIDE + 1:i - GAP + 1])),
                              _rms(_parabola_residual(x[i + GAP:i + GAP + SIDE]))) > PARABOLIC * noise:
-            continue  # no jump, or one smooth motion turns round here: no impact
+            continue  # a side that is no one motion: a swing's turn read from many frames, or what
+            #           the tracker took after the thing left the view
         score[i] = float((gap * ok).max()) / sigma
     return score
 
@@ -232,16 +231,12 @@ def _smooth_misfit(y: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(a @ coef - y))))
 
 
-def _value_weights(t: np.ndarray) -> np.ndarray:
-    """w such that w @ y is the value at t = 0 of the parabola least-squares fitted to y at times t."""
+def _at_zero(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(v, w) such that v @ y and w @ y are the value and the slope at t = 0 of the parabola
+    least-squares fitted to y at times t."""
     a = np.stack([np.ones_like(t), t, t * t], axis=1)
-    return np.linalg.pinv(a)[0]
-
-
-def _slope_weights(t: np.ndarray) -> np.ndarray:
-    """w such that w @ y is the slope at t = 0 of the parabola least-squares fitted to y at times t."""
-    a = np.stack([np.ones_like(t), t, t * t], axis=1)
-    return np.linalg.pinv(a)[1]
+    pinv = np.linalg.pinv(a)
+    return pinv[0], pinv[1]
 
 
 def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray | None], *,

@@ -117,8 +117,7 @@ def make_plan(system: OdeSystem, params: Mapping[str, ParamSpec], frames: torch.
         track = None  # frames cut or subsampled after reading: the track is not theirs
     with torch_threads(config.threads):
         observation = resolve_observation(observe, system, frames[:n_train], config.light, config.encoder,
-                                          source=observe_source, track=track, n_train=n_train,
-                                          scaled=lengths is not None and lengths.metres_per_px is not None)
+                                          source=observe_source, track=track, n_train=n_train)
     if lengths is not None:  # how a measured length reads in px or metres (observe.base.Lengths)
         observation.use_lengths(lengths)
     config, encoder_reason = resolve_encoder(config, system, observation)

@@ -53,7 +53,7 @@ def named_model(name: str, light: str = "auto") -> ObservationModel:
 def resolve_observation(spec: str | Mapping[str, str] | ObservationModel | None, system,
                         frames: torch.Tensor | None = None, light: str = "auto", encoder: str = "auto",
                         source: str = "as asked", track: Track | None = None,
-                        n_train: int | None = None, scaled: bool = False) -> ObservationModel:
+                        n_train: int | None = None) -> ObservationModel:
     """The observation model a fit uses, bound to the equation's states and given the reader's
     track, with its reason: an instance as given, a name, one name per state ({state: name} or
     "x=position;y=size"), or "auto" (None): position where the change moves one way, angle where
@@ -63,10 +63,9 @@ def resolve_observation(spec: str | Mapping[str, str] | ObservationModel | None,
     first-order linear equation whose frames brighten or dim as one, any otherwise (and wherever
     an encoder other than linear was asked for). source: where a named model came from, for its
     reason. track: the reader's track of every frame the fit will use (the auto choice looks at
-    its first n_train), None where there is none. scaled: a scale stick was given, which says the
-    states are lengths."""
+    its first n_train), None where there is none."""
     model = _resolved(spec, system, frames, light, encoder, source,
-                      None if track is None else track.head(len(track) if n_train is None else n_train), scaled)
+                      None if track is None else track.head(len(track) if n_train is None else n_train))
     model.bind(system)
     if track is not None:
         model.use_track(track)
@@ -78,7 +77,7 @@ def resolve_observation(spec: str | Mapping[str, str] | ObservationModel | None,
     return model
 
 
-def _resolved(spec, system, frames, light, encoder, source, track, scaled=False) -> ObservationModel:
+def _resolved(spec, system, frames, light, encoder, source, track) -> ObservationModel:
     if isinstance(spec, ObservationModel):
         spec.reason = spec.reason or f"{spec.name} (as given)"
         return spec
@@ -127,20 +126,12 @@ def _resolved(spec, system, frames, light, encoder, source, track, scaled=False)
                         f"pixels, {c.significance:.0f}x its uncertainty (scatter {c.scatter:.1f} pixels over "
                         f"{c.points} frames): the angle about that centre is the state in radians)")
         return model
-    if seen is not None and seen.moves and all(axis_of(state) for state in system.states):
+    if seen is not None and seen.travels and all(axis_of(state) for state in system.states):
         model = PositionObservation()
         named = ", ".join(f"{state} {'across' if axis_of(state) == 'x' else 'up'}" for state in system.states)
-        model.reason = (f"position (auto: the change moves {seen.travel:.0f} pixels, {seen.travel / seen.size:.0f}x its "
-                        f"size, and the state's name says the image axis it is measured along ({named}))")
-        return model
-    if (scaled and seen is not None and seen.followed > 1 and seen.gap < SUBSPACE_JUMP
-            and all(axis_of(state) for state in system.states)):
-        # a short piece of a motion (a cart's last flight, 27 pixels) moves less than the change's
-        # size in the shrunk frames, but the tracked object travels farther than its own size and
-        # the scale stick says its states are lengths: the free encoder would drop the stick
-        model = PositionObservation()
-        model.reason = (f"position (auto: the tracked object moves {seen.followed:.1f}x its size, a scale stick was "
-                        "given and the state's name says the image axis it is measured along)")
+        how = (f"the change moves {seen.travel:.0f} pixels, {seen.travel / seen.size:.0f}x its size" if seen.moves else
+               f"the tracked object moves {seen.followed:.1f}x its own size")
+        model.reason = f"position (auto: {how}, and the state's name says the image axis it is measured along ({named}))"
         return model
     if not power_symmetric(system):
         model = ObservationModel()
@@ -212,10 +203,16 @@ class Look:
         return self.circle
 
     @property
+    def travels(self) -> bool:
+        """It moves, or the tracked object travels farther than its own size: a short piece of a
+        motion (a cart's last flight alone, 27 pixels up and back) moves less than the change's
+        region in the shrunk frames (the cart and its ghost in the median frame)."""
+        return self.moves or (self.followed > 1 and self.gap < SUBSPACE_JUMP)
+
+    @property
     def swings(self) -> bool:
         """It moves back and forth along an arc that clearly bends about a centre."""
-        moves = self.moves or (self.followed > 1 and self.gap < SUBSPACE_JUMP)
-        if not (moves and self.one_way < ONE_WAY):
+        if not (self.travels and self.one_way < ONE_WAY):
             return False
         c = self.arc()
         return (c is not None and c.significance >= SWING and c.thinness <= THIN and c.radius_error < 0.5
