@@ -50,7 +50,7 @@ SHORT = "throw 240 fps"  # the generated clip's name in --clip
 # the stages, each the functions whose calls it sums (module, attribute); the first match of a name is patched
 STAGES = {
     "read and measure": [("fitode.pipeline", "_read"), ("fitode.api", "plan"), ("fitode.api", "measure")],
-    "fit": [("fitode.api", "fit_frames")],
+    "fit": [("fitode.train.trainer", "fit_frames")],
     "intervals": [("fitode.api", "_intervals")],
     "assessment": [("fitode.api", "_calibrate"), ("fitode.train.assess", "assess")],
     # the result's own pictures (latent, params, loss) are drawn by fitode.output's _try_plot, track

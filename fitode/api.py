@@ -12,18 +12,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any, Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
 import numpy as np
-import torch
 
 from fitode.eqparse import OdeSystem, ParamSpec
 from fitode.errors import ConfigError, FitodeError
 from fitode.train.config import TrainConfig
-from fitode.train.observe import ObservationModel
-from fitode.train.plan import FitPlan, make_plan
-from fitode.train.result import FitResult
-from fitode.train.trainer import Callback, fit_frames
+
+if TYPE_CHECKING:  # torch comes with the plan: a request that fails (an equation, a video) costs no torch import
+    import torch
+
+    from fitode.train.observe import ObservationModel
+    from fitode.train.plan import FitPlan
+    from fitode.train.result import FitResult
+    from fitode.train.trainer import Callback
 
 
 @dataclass(frozen=True)
@@ -72,9 +75,8 @@ def request(*, eq: str | None = None, system: str | OdeSystem | None = None, eq_
     _check_init(ode, init, spec_params)
     if isinstance(train_fraction, bool) or not isinstance(train_fraction, (int, float)) or not 0 < train_fraction <= 1:
         raise ConfigError(f"train_fraction must be in (0, 1], got {train_fraction!r}")
-    if config.device.startswith("cuda") and not torch.cuda.is_available():
-        raise ConfigError(f"device {config.device}: no CUDA device is available here (torch {torch.__version__}, "
-                          f"built {'with' if torch.version.cuda else 'without'} CUDA); use cpu")
+    if config.device.startswith("cuda"):
+        _check_cuda(config.device)
     source = "as asked"
     if observe is None and spec_observe not in (None, "auto"):
         observe, source = spec_observe, "from the equation file"
@@ -95,12 +97,20 @@ def request(*, eq: str | None = None, system: str | OdeSystem | None = None, eq_
                       calibration=points, spec=spec, scale=stick)
 
 
+def _check_cuda(device: str) -> None:
+    import torch
+    if not torch.cuda.is_available():
+        raise ConfigError(f"device {device}: no CUDA device is available here (torch {torch.__version__}, "
+                          f"built {'with' if torch.version.cuda else 'without'} CUDA); use cpu")
+
+
 def plan(req: FitRequest, frames: torch.Tensor, dt: float, track=None, geometry=None) -> FitPlan:
     """Every choice of the fit resolved on its frames (float (T, C, H, W), as_frames), the
     reader's track of them (fitode.train.observe.track.Track, or None) and where they lie in the
     source (fitode.measurement.FrameGeometry, or None: frames given as they are, their pixels the
     source's), which with the request's scale stick says how a measured length reads."""
     from fitode.train.observe.base import Lengths
+    from fitode.train.plan import make_plan
 
     if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not (dt > 0 and np.isfinite(dt)):
         raise ConfigError(f"dt must be a positive number of seconds, got {dt!r}")
@@ -146,6 +156,7 @@ def _execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_o
     from fitode.eqparse import analyse
     from fitode.interrupted import fitted, stage
     from fitode.train.assess import assess
+    from fitode.train.trainer import fit_frames
 
     # an interruption after training keeps the estimates: fitode.interrupted.Stopped carries them
     calibrating = bool(req.calibration)
@@ -242,6 +253,8 @@ def _check_init(ode: OdeSystem, init: Mapping[str, float] | None, params: Mappin
 
 def as_frames(frames) -> torch.Tensor:
     """Any common frame layout -> float32 (T, C, H, W)."""
+    import torch
+
     x = torch.as_tensor(np.asarray(frames) if not isinstance(frames, torch.Tensor) else frames)
     x = x.detach().to(torch.float32)
     if x.ndim == 3:

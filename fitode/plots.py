@@ -16,16 +16,21 @@ import numpy as np
 DPI = 110
 
 
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-    return plt
+def _figure(pyplot: bool = False, **kw):
+    """A matplotlib Figure whose layout engine (constrained) runs as it is saved, with no call of
+    its own. The files are drawn without pyplot: its import and figure manager cost about a third
+    of a second a run and no window is shown; pyplot: a figure pyplot manages, for a user's session
+    (Result.plot), where plt.show() shows it."""
+    if pyplot:
+        import matplotlib.pyplot as plt
+        return plt.figure(layout="constrained", **kw)
+    from matplotlib.figure import Figure
+    return Figure(layout="constrained", **kw)
 
 
 def _colours(n: int) -> list:
-    plt = _plt()
-    cmap = plt.get_cmap("tab10" if n <= 10 else "tab20")
+    from matplotlib import colormaps
+    cmap = colormaps["tab10" if n <= 10 else "tab20"]
     return [cmap(i % cmap.N) for i in range(max(n, 1))]
 
 
@@ -39,7 +44,7 @@ def plot_latent(path: str | Path, time: Sequence[float], latent: np.ndarray, rol
 
 def latent_figure(time: Sequence[float], latent: np.ndarray, rollout: np.ndarray, train_frames: int,
                   states: Sequence[str], *, window: int | None = None, ylabels: Sequence[str] | None = None,
-                  angles: Sequence[str] = (), measured: bool = False):
+                  angles: Sequence[str] = (), measured: bool = False, pyplot: bool = False):
     """Encoded latent (dots) and the physics rollout from the first frames (line), per state: a Figure.
     measured: the dots are a measured path fitted directly by one trajectory (train/direct.py), so
     no training window applies and the line is that trajectory.
@@ -50,14 +55,14 @@ def latent_figure(time: Sequence[float], latent: np.ndarray, rollout: np.ndarray
 
     ylabels: one axis label per state, for a calibrated latent (its values in physical units);
     None labels every axis in latent units (see `latent_label`). angles: the states that are an
-    angle in radians, which get a second axis in degrees.
+    angle in radians, which get a second axis in degrees. pyplot: a figure pyplot manages (_figure).
     """
-    plt = _plt()
     t = np.asarray(time, dtype=float)
     z = np.asarray(latent, dtype=float).reshape(len(t), -1)
     r = np.asarray(rollout, dtype=float).reshape(len(t), -1)
     d = z.shape[1]
-    fig, axes = plt.subplots(d, 1, figsize=(9, 2.6 * d + 0.6), sharex=True, squeeze=False)
+    fig = _figure(pyplot, figsize=(9, 2.6 * d + 0.6))
+    axes = fig.subplots(d, 1, sharex=True, squeeze=False)
     t_train = t[train_frames] if train_frames < len(t) else None
     for i, ax in enumerate(axes[:, 0]):
         ax.plot(t, z[:, i], ".", ms=3.5, color="tab:blue", label="measured frames" if measured else "encoded frames")
@@ -176,10 +181,10 @@ def plot_params(path: str | Path, runs: Sequence[Mapping[str, Any]], estimates: 
     y-axis label per constant (default: name [unit]); own_units: constants whose restarts each read
     the measured path in units of their own, so that only the estimate's runs are in its units: the
     others stay faint and out of the y range, and the panel says so."""
-    plt = _plt()
     names = _constant_names(runs) or list(estimates)
     n = max(len(names), 1)
-    fig, axes = plt.subplots(n, 1, figsize=(8, 2.9 * n + 0.6), sharex=True, squeeze=False)
+    fig = _figure(figsize=(8, 2.9 * n + 0.6))
+    axes = fig.subplots(n, 1, sharex=True, squeeze=False)
     colours = _colours(len(runs))
     for ax, name in zip(axes[:, 0], names):
         factor = (factors or {}).get(name, 1.0)
@@ -246,8 +251,8 @@ def _robust_ylim(ax, runs, name: str, estimate: float | None, factor: float = 1.
 
 def plot_loss(path: str | Path, runs: Sequence[Mapping[str, Any]]) -> Path:
     """Training loss of every restart against step (log y, log x)."""
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(8, 3.6))
+    fig = _figure(figsize=(8, 3.6))
+    ax = fig.subplots()
     for run, c in zip(runs, _colours(len(runs))):
         h = run.get("history") or {}
         steps = np.asarray(h.get("step", []), dtype=float)
@@ -271,26 +276,38 @@ def plot_loss(path: str | Path, runs: Sequence[Mapping[str, Any]]) -> Path:
 
 
 def plot_frames(path: str | Path, frames, dt: float, n: int = 8, t0: float = 0.0) -> Path:
-    """A strip of n frames evenly spread over the clip, after preprocessing, with their times."""
-    plt = _plt()
+    """A strip of n frames evenly spread over the clip, after preprocessing, with their times: one
+    image of the frames side by side (one axes lays out and draws in about two thirds of the time
+    of one axes per frame)."""
     x = np.asarray(frames.detach().cpu() if hasattr(frames, "detach") else frames, dtype=np.float32)
     if x.ndim == 3:
         x = x[:, None]
     total = x.shape[0]
     idx = np.unique(np.linspace(0, total - 1, min(n, total)).round().astype(int))
     h, w = x.shape[2], x.shape[3]
-    per = min(1.6 * max(w / h, 0.5), 14.0 / len(idx))  # inches per frame; the strip stays under ~14 in
-    fig, axes = plt.subplots(1, len(idx), figsize=(per * len(idx), max(per * h / w, 1.0) + 0.7), squeeze=False)
+    gap = max(2, w // 12)  # blank columns between frames
+    colour = x.shape[1] == 3
     lo, hi = float(x.min()), float(x.max())
-    for ax, i in zip(axes[0], idx):
-        img = x[i]
-        if img.shape[0] == 3:
-            ax.imshow(np.clip(img.transpose(1, 2, 0), 0, 1))
-        else:
-            ax.imshow(img[0], cmap="gray", vmin=lo, vmax=hi if hi > lo else lo + 1)
-        ax.set_title(f"t={t0 + i * dt:.2f}s", fontsize=8)
-        ax.set_xticks([])
-        ax.set_yticks([])
+    tiles = [np.clip(x[i].transpose(1, 2, 0), 0, 1) if colour else x[i][0] for i in idx]
+    blank = np.full((h, gap, 3) if colour else (h, gap), np.nan, dtype=np.float32)
+    strip = np.concatenate([part for tile in tiles for part in (tile, blank)][:-1], axis=1)
+    per = min(1.6 * max(w / h, 0.5), 14.0 / len(idx))  # inches per frame; the strip stays under ~14 in
+    wide = per * len(idx)
+    fig = _figure(figsize=(wide, max(wide * h / strip.shape[1], 0.3) + 0.7))  # the strip's own height, titles above
+    ax = fig.subplots()
+    if colour:  # the gaps white, as the page
+        ax.imshow(np.where(np.isnan(strip), 1.0, strip))
+    else:
+        ax.imshow(np.ma.masked_invalid(strip), cmap="gray", vmin=lo, vmax=hi if hi > lo else lo + 1)
+    from matplotlib.collections import PatchCollection
+    from matplotlib.patches import Rectangle
+    ax.add_collection(PatchCollection([Rectangle((k * (w + gap) - 0.5, -0.5), w, h) for k in range(len(idx))],
+                                      facecolor="none", edgecolor="black", linewidth=0.8))
+    for k, i in enumerate(idx):
+        ax.text(k * (w + gap) + (w - 1) / 2, -1, f"t={t0 + i * dt:.2f}s", ha="center", va="bottom", fontsize=8)
+    ax.set_xlim(-1.0, strip.shape[1])  # the borders inside the axes
+    ax.set_ylim(h, -1.0)
+    ax.set_axis_off()
     fig.suptitle(f"preprocessed frames ({total} frames of {w}x{h} pixels (WxH), dt {dt:.4g} s)", fontsize=9)
     return _save(fig, path)
 
@@ -323,11 +340,8 @@ def _fmt(v: float) -> str:
 
 
 def _save(fig, path: str | Path) -> Path:
-    plt = _plt()
     path = Path(path)
-    fig.tight_layout()
     fig.savefig(path, dpi=DPI)
-    plt.close(fig)
     return path
 
 
@@ -359,7 +373,6 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
     clip's own index). pieces: the pieces record (meta["pieces"], fitode.train.pieces: frames of
     the clip), each piece shaded and each event marked.
     """
-    plt = _plt()
     m = dict(measurement or {})
     t = np.asarray(time, dtype=float)
     idx = sorted(stills)
@@ -377,7 +390,7 @@ def plot_track(path: str | Path, measurement: Mapping[str, Any] | None, stills: 
     per = min(max(6.0 / aspect, 1.2), per)
     width = max(per * cols, 8.5)
     tall = min(max((width / cols - 0.7) * aspect, 1.5), 6.0)  # what the frame's shape leaves of its column
-    fig = plt.figure(figsize=(width, tall + 2.3 + 2.3 * len(readings)))
+    fig = _figure(figsize=(width, tall + 2.3 + 2.3 * len(readings)))
     # a row of its own for the legend of the frames: above them it would cover the title
     grid = fig.add_gridspec(n_rows + 1, max(len(idx), 1), height_ratios=[0.45, tall + 0.6] + [2.0] * len(readings))
     inside = _in_stretch(stretch, len(t), pieces)

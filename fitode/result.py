@@ -119,9 +119,9 @@ class Result(FitResult):
             ylabels = self.calibration["ylabels"]
         fig = plots.latent_figure(self.time + _t0(self), latent, rollout, self.train_frames, self.states,
                                   window=int(self.settings.get("window", 0)) or None, ylabels=ylabels,
-                                  angles=plots.angle_states(self), measured=bool(self.meta.get("direct")))
+                                  angles=plots.angle_states(self), measured=bool(self.meta.get("direct")),
+                                  pyplot=True)
         if path is not None:
-            fig.tight_layout()
             fig.savefig(path, dpi=plots.DPI)
         return fig
 

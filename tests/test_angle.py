@@ -122,20 +122,25 @@ def test_measure_finds_nothing_in_a_still_clip():
     assert np.isnan(xy).all()
 
 
+def _shrunk(path, factor: int = 4) -> torch.Tensor:
+    """A 320x240 clip of a ball of radius 4 at the path's centres as the reader hands it to the plan:
+    shrunk factor times (the track stays at the source's resolution)."""
+    return torch.from_numpy(_ball_clip(np.asarray(path) / factor, h=240 // factor, w=320 // factor,
+                                       r=4 / factor)[:, None] / 255.0).float()
+
+
 def test_auto_picks_the_angle_for_a_swing_and_position_for_a_line():
     pend, osc = parse(PENDULUM), parse("x'' = -k*x")
     xy, _ = _swing(n=200, amplitude=0.6, pivot=(160.0, -100.0), radius=250.0, noise=0.2)
-    frames = torch.from_numpy(_ball_clip(xy[:, :] * [1, 1], r=4)[:, None] / 255.0).float()
-    picked = resolve_observation(None, pend, frames, track=_track(xy))
+    picked = resolve_observation(None, pend, _shrunk(xy), track=_track(xy))
     assert isinstance(picked, AngleObservation) and "swings back and forth" in picked.reason
     assert picked.track is not None
     s = np.linspace(0, 1, 200)
     line = np.column_stack([60 + 200 * s, 120 + 0 * s])
-    moving = torch.from_numpy(_ball_clip(line, r=4)[:, None] / 255.0).float()
-    assert isinstance(resolve_observation(None, osc, moving, track=_track(line)), PositionObservation)
+    assert isinstance(resolve_observation(None, osc, _shrunk(line), track=_track(line)), PositionObservation)
     back_and_forth = np.column_stack([160 + 100 * np.sin(np.arange(200) / 6), 120 + 0 * s])
-    frames = torch.from_numpy(_ball_clip(back_and_forth, r=4)[:, None] / 255.0).float()
-    assert not isinstance(resolve_observation(None, osc, frames, track=_track(back_and_forth)), AngleObservation)
+    picked = resolve_observation(None, osc, _shrunk(back_and_forth), track=_track(back_and_forth))
+    assert not isinstance(picked, AngleObservation)
 
 
 @pytest.mark.slow
@@ -232,3 +237,20 @@ def test_a_small_swing_whose_string_sweeps_more_than_its_bob_travels_still_swing
     assert not Look(**shrunk).moves and not Look(**shrunk).swings
     assert Look(**shrunk, followed=6.0).swings
     assert not Look(**{**shrunk, "gap": 40.0}, followed=6.0).swings  # one pattern that brightens: a lamp
+
+
+def test_the_look_fits_its_circle_only_when_asked_whether_the_path_swings(monkeypatch):
+    """A path that runs one way is decided without the robust circle fit (nor scipy's import); a
+    back-and-forth one fits it once, from the points the look kept, and swings as before."""
+    from fitode.train.observe import auto
+    fits = []
+    monkeypatch.setattr(auto, "fit_circle", lambda xy: fits.append(len(xy)) or fit_circle(xy))
+    a = np.radians(20) * np.cos(np.linspace(0, 8 * np.pi, 200))
+    arc = np.column_stack([200 + 215 * np.sin(a), 20 + 215 * np.cos(a)])
+    arc += np.random.default_rng(0).normal(0, 0.3, arc.shape)
+    line = np.column_stack([np.linspace(0, 100, 200), np.linspace(0, 50, 200)])
+    one_way = auto.Look(travel=110.0, size=5.0, one_way=0.99, bent=line)
+    assert one_way.moves and not one_way.swings and fits == [] and one_way.circle is None
+    swing = auto.Look(travel=140.0, size=5.0, one_way=0.05, bent=arc)
+    assert swing.swings and swing.swings and fits == [200]
+    assert swing.arc().radius == pytest.approx(215, rel=1e-3)

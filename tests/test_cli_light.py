@@ -45,6 +45,25 @@ def test_every_verbs_help_and_the_batch_driver_do_not_import_torch(tmp_path):
     assert r.returncode == 0 and r.stdout.strip().endswith("ok"), r.stderr
 
 
+def test_a_run_whose_equation_or_video_is_bad_fails_without_importing_torch(tmp_path):
+    """torch comes with the plan, after the read: a typo, a missing or an unreadable video is one
+    line and status 2 in the time of the parse and the read (seconds less)."""
+    (tmp_path / "notes.mp4").write_text("not a video")
+    eq = "x'' = -k*x"
+    cases = [[str(tmp_path / "missing.mp4"), "--eq", eq], [str(tmp_path / "notes.mp4"), "--eq", eq],
+             [str(tmp_path / "notes.mp4"), "--eq", "x'' = -k*"]]
+    code = ("import fitode.cli, sys\n"
+            f"codes = [fitode.cli.main(argv + ['--out', {str(tmp_path / 'out')!r}]) for argv in {cases!r}]\n"
+            "assert codes == [2, 2, 2], codes\n"
+            "assert 'torch' not in sys.modules, 'torch was imported'\n"
+            "print('ok')\n")
+    r = _fresh(code)
+    assert r.returncode == 0 and r.stdout.strip().endswith("ok"), r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 3 and all(line.startswith("fitode: error: ") for line in lines), lines
+    assert "no such file" in lines[0] and "cannot read it as a video" in lines[1] and "column" in lines[2]
+
+
 BAD = [
     (["--restarts", "0"], "--restarts"),
     (["--max-steps", "-1"], "--max-steps"),

@@ -188,11 +188,11 @@ def test_the_interval_resamples_every_piece():
 
 
 def test_track_png_shades_every_piece_and_marks_every_event():
-    from fitode.plots import _mark_pieces, _plt
+    from fitode.plots import _figure, _mark_pieces
     x, _ = bouncing()
     pieces = find_pieces(x[:, None], DT, parabola_fit(x))
     record = pieces.to_dict(DT, len(x))
-    fig, ax = _plt().subplots()
+    ax = _figure().subplots()
     _mark_pieces(ax, np.arange(len(x)) * DT, record)
     labels = [h.get_label() for h in ax.get_legend_handles_labels()[0]]
     assert len(ax.patches) == len(pieces.spans) and f"the {len(pieces.spans)} pieces fitted together" in labels

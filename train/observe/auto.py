@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Mapping
 
+import numpy as np
 import torch
 
 from .angle import AngleObservation
@@ -119,7 +120,7 @@ def _resolved(spec, system, frames, light, encoder, source, track) -> Observatio
         return model
     if seen is not None and seen.swings and len(system.states) == 1:
         model = AngleObservation()
-        c = seen.circle
+        c = seen.arc()
         model.reason = (f"angle (auto: the change swings back and forth (rank correlation {seen.one_way:.2f} with "
                         f"time) along an arc about a centre {c.radius:.0f} pixels away that bows {c.sagitta:.1f} "
                         f"pixels, {c.significance:.0f}x its uncertainty (scatter {c.scatter:.1f} pixels over "
@@ -172,6 +173,9 @@ class Look:
     one_way: float
     gap: float = 1.0  # the frames' first singular value over their second
     circle: Circle | None = None  # the circle the path bends about (None: a line, or too few points)
+    # the path's points (T, 2) whose circle is fitted on first need (arc): a path that runs one way
+    # is decided without it, and without the import of scipy that the robust fit takes
+    bent: np.ndarray | None = None
     # the shares of the tracked path's travel its longest one-way run covers and its longest run the
     # other way (tracking.one_way_run; (0, 0): no track)
     run: tuple[float, float] = (0.0, 0.0)
@@ -192,6 +196,12 @@ class Look:
         singular value), even where its brightest core seems to wander."""
         return self.travel > self.size and self.gap < SUBSPACE_JUMP
 
+    def arc(self) -> Circle | None:
+        """The circle the path bends about (circle, or fitted now to the points kept in bent)."""
+        if self.circle is None and self.bent is not None:
+            self.circle, self.bent = fit_circle(self.bent), None
+        return self.circle
+
     @property
     def travels(self) -> bool:
         """It moves, or the tracked object travels farther than its own size: a short piece of a
@@ -202,9 +212,11 @@ class Look:
     @property
     def swings(self) -> bool:
         """It moves back and forth along an arc that clearly bends about a centre."""
-        c = self.circle
-        return (self.travels and self.one_way < ONE_WAY and c is not None and c.significance >= SWING
-                and c.thinness <= THIN and c.radius_error < 0.5 and c.span >= SPAN)
+        if not (self.travels and self.one_way < ONE_WAY):
+            return False
+        c = self.arc()
+        return (c is not None and c.significance >= SWING and c.thinness <= THIN and c.radius_error < 0.5
+                and c.span >= SPAN)
 
 
 @torch.no_grad()
@@ -238,8 +250,8 @@ def look(frames: torch.Tensor, track: Track | None = None) -> Look:
         # a track that jumps to something else in some frames (a hand, the floor) looks back and
         # forth; the shrunk frames' centroids of the same clip may still see it run one way
         seen = Look(seen.travel, seen.size, max(seen.one_way, one_way(path[::step])), gap,
-                    fit_circle(track.filled()), one_way_run(path.numpy()),
-                    float(path.max() - path.min()) / max(track.area, 1.0) ** 0.5)
+                    run=one_way_run(path.numpy()), followed=float(path.max() - path.min()) / max(track.area, 1.0) ** 0.5,
+                    bent=track.filled())
     elif seen.moves:
-        seen.circle = fit_circle(xy.double().cpu().numpy())
+        seen.bent = xy.double().cpu().numpy()
     return seen
