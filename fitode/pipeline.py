@@ -189,10 +189,11 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     rep.write_json(report, folder / "result.json")  # "running": even a hard kill leaves a marked folder
     plots_done: list[str] = []
     from fitode import plots
-    _try_plot(plots.plot_frames, folder / "frames.png", clip.frames, clip.dt, t0=t0, plots_done=plots_done)
 
     comparison = None
     try:
+        # inside the try: a signal while it is drawn still leaves the folder marked interrupted
+        _try_plot(plots.plot_frames, folder / "frames.png", clip.frames, clip.dt, t0=t0, plots_done=plots_done)
         result, req, plan, comparison = fit_staged(reqs, staged, rate=rate_std(read.fps), callback=recorder,
                                                    progress=progress, log=say)
         if comparison is not None and comparison.chosen:  # the report describes the candidate whose numbers it gives
