@@ -91,13 +91,11 @@ def test_a_change_that_travels_across_is_no_water_line():
     # a band of water grows up and down; a cart rolling along a bench read as one (a generated
     # bumper cart at 240x135 was: its x barely moved, "a 0 px/s^2"): the same frames of a tank, with
     # the detector's path running across instead of up and down, are no water line
-    from fitode.video.track import _noise, _sample
+    from fitode.video.follow import static_scene
     from fitode.video.waterline import read_line
     frames, truth = _drain(1)
     paths, _ = measure_paths(frames, 1)
-    sample = _sample(len(frames))
-    background = np.median(frames[sample], axis=0).round().astype(np.uint8)
-    noise = _noise(frames[sample[::6]], background)
+    sample, background, noise = static_scene(frames)
     assert read_line(frames, paths[0], sample, background, noise) is not None
     across = paths[0].copy()
     across[:, 0] = np.linspace(20, 140, len(across))
@@ -108,12 +106,10 @@ def test_a_line_that_jumps_between_edges_is_no_water_line(monkeypatch):
     # a generated slow drain's line was read at rows 40-42, then 53-58, then 44 (three edges):
     # k 0.025 for 0.010, not trustworthy; such a reading is left to the level's own
     import fitode.video.waterline as waterline
-    from fitode.video.track import _noise, _sample
+    from fitode.video.follow import static_scene
     frames, truth = _drain(2)
     paths, _ = measure_paths(frames, 1)
-    sample = _sample(len(frames))
-    background = np.median(frames[sample], axis=0).round().astype(np.uint8)
-    noise = _noise(frames[sample[::6]], background)
+    sample, background, noise = static_scene(frames)
     assert waterline.read_line(frames, paths[0], sample, background, noise) is not None
     read = waterline._near_anchor
 

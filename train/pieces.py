@@ -91,8 +91,7 @@ class Pieces:
         follow the last kept piece, the motion is lost there, and their events go with them."""
         kept = [s for i, s in enumerate(self.spans) if i not in drop]
         gone = [s for i, s in enumerate(self.spans) if i in drop]
-        end = kept[-1][1]
-        events = [e for e in self.events if e.frame <= end + GAP + 1 or e.kind in ("hold", "moved", "release")]
+        end, events = kept[-1][1], list(self.events)
         if gone[-1][1] > end:  # the last pieces are another motion: the equation's ends with the last kept
             events = [e for e in events if e.frame < end] + [Event(end, "lost")]
         return Pieces(kept, events, self.noise, self.left_out + gone)

@@ -435,7 +435,7 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
             unread[[i for i in mended if i < n]] = True
             pieces = find_pieces(latent[:n], plan.dt, fit, unread=unread)
             if len(pieces.spans) > 1 and plan.observation.measured:
-                pieces = _one_motion(latent[:n], pieces, plan, warm)
+                pieces = _same_motion(latent[:n], pieces, plan, warm)
             found = _longest(latent[:n], pieces, plan.dt) if pieces.spans else find_stretch(latent[:n], plan.dt, fit)
             if not pieces.spans:
                 pieces = None
@@ -446,7 +446,7 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
     return (found.start, found.end), record, pieces
 
 
-def _one_motion(x: np.ndarray, pieces: Pieces, plan: FitPlan, start: Mapping[str, float]) -> Pieces:
+def _same_motion(x: np.ndarray, pieces: Pieces, plan: FitPlan, start: Mapping[str, float]) -> Pieces:
     """The pieces less those whose own constants are another motion's (joint.other_motions: a
     ball rolling on the floor after its bounces, then a hand): a measured path's pieces, fitted
     each alone from the windows' constants, before the runs choose their stretch among them."""

@@ -46,6 +46,7 @@ SEED_FRAMES = 40  # frames the seed is chosen among
 PEAKS = 1         # the correlation's peaks refined where the best is not a good match
 MARGIN = 2        # pixels of background kept around the object's mask in the template
 OFFSET = 0.25     # the largest change of the object's brightness (beyond a gain) a match allows, in its contrasts
+BACKGROUND_FRAMES = 48  # frames spread over the clip whose median is the static scene (static_scene)
 RING_QUANTILE = 0.25  # the share of the ring around the object that must still show what surrounded it
 
 
@@ -76,7 +77,7 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
     clear enough to cut a template."""
     t_all = len(stack)
     if background is None or noise is None:
-        background, noise = _static(stack)
+        _, background, noise = static_scene(stack)
     cut = _seed(stack, seed_xy, background, noise)
     if cut is None:
         return None
@@ -177,7 +178,7 @@ def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
     one that keeps its look best (the median score against the seed frame's template).
     The strongest change is not always the object: legs walking behind a can on a spring change
     more; they also change their shape as they go."""
-    background, noise = _static(stack)
+    _, background, noise = static_scene(stack)
     best, rank = None, None
     for path in paths:
         if np.isfinite(path[:, 0]).sum() < 3:
@@ -198,14 +199,16 @@ def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
     return best
 
 
-def _static(stack: np.ndarray) -> tuple[np.ndarray, float]:
-    """The static scene (the median of up to 48 frames spread over the clip) and the noise of a
-    frame's difference from it, as one pixel's standard deviation."""
-    sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), 48)).round().astype(int))
+def static_scene(stack: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The frames (up to BACKGROUND_FRAMES, spread over the clip) the static scene is the median
+    of, that median, and the noise of a frame's difference from it, as one pixel's standard
+    deviation (most pixels show only noise): what the change detector (fitode.video.track), the
+    object tracker and the water line measure against."""
+    sample = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), BACKGROUND_FRAMES)).round().astype(int))
     background = np.median(stack[sample], axis=0).round().astype(np.uint8)
     noise = float(1.4826 * np.median(np.abs(stack[sample[::6], ::2, ::2].astype(np.int16)
                                             - background[::2, ::2]))) + 0.5
-    return background, noise
+    return sample, background, noise
 
 
 def _seed(stack, seed_xy, background, noise):
@@ -642,7 +645,7 @@ def _steadier(stack: np.ndarray, path: np.ndarray, found: Followed | None,
         middle = int(np.median(seen))
         a = max(0, min(middle - PROBE // 2, len(path) - PROBE))
         stretch = slice(a, a + PROBE)
-        background, noise = _static(stack)
+        _, background, noise = static_scene(stack)
         probe = follow_object(stack[stretch], path[stretch], background, noise)
         if probe is None or not scatter(probe.xy) * STEADIER <= scatter(path[stretch]):
             return path, keep, None

@@ -2,7 +2,7 @@
 shrunk: the reader's streaming pass hands each kept frame (inside --roi) to a TrackRecorder,
 which keeps it in gray, and measures the whole clip once the pass is over.
 
-The static scene is the per-pixel median of BACKGROUND_FRAMES frames spread over the clip; an
+The static scene is the per-pixel median of frames spread over the clip (follow.static_scene); an
 object that lingers somewhere leaves a ghost there, so the background is rebuilt, pixel by pixel,
 from the frames in which the first measure put the object farther away than twice its size (as
 fitode.train.observe.tracking does on the shrunk frames). In each frame the object is the
@@ -28,11 +28,10 @@ import cv2
 import numpy as np
 
 from fitode.train.observe.track import Track
-from fitode.video.follow import Followed, choose
+from fitode.video.follow import Followed, choose, static_scene
 from fitode.video.waterline import read_line
 
 TRACK_BYTES = 384 * 2 ** 20
-BACKGROUND_FRAMES = 48
 NOISE_SIGMAS = 4.0
 CORE = 0.5
 LOCATE = 4  # the whole factor the change is shrunk by to find the object's region
@@ -114,9 +113,7 @@ def place(stack: np.ndarray, paths: np.ndarray, areas: np.ndarray,
     object tracker's result where the caller has it."""
     xy, how, found = choose(stack, paths, areas, found)
     if found is None:
-        sample = _sample(len(stack))
-        background = np.median(stack[sample], axis=0).round().astype(np.uint8)
-        line = read_line(stack, paths[0], sample, background, _noise(stack[sample[::6]], background))
+        line = read_line(stack, paths[0], *static_scene(stack))
         if line is not None:
             return line[0], line[1], None, True
     return xy, how, found, False
@@ -141,9 +138,7 @@ def measure_paths(stack: np.ndarray, objects: int = 1, per_frame: bool = False) 
     """(objects, T, 2) the paths of the `objects` strongest moving things in gray frames
     (T, H, W) uint8 (see follow), the first the object's, NaN where a path has nothing; and the
     first object's mean area in pixels (per_frame: its area in each frame, (T,), NaN where unseen)."""
-    sample = _sample(len(stack))
-    background = np.median(stack[sample], axis=0).round().astype(np.uint8)
-    noise = _noise(stack[sample[::6]], background)
+    sample, background, noise = static_scene(stack)
     found = {t: _candidates(stack[t], background, noise) for t in range(len(stack))}
     xy, area = _paths(found, len(stack), 1)
     xy = xy[0]
@@ -173,17 +168,6 @@ def measure_paths(stack: np.ndarray, objects: int = 1, per_frame: bool = False) 
     if per_frame:
         return paths, area
     return paths, float(np.nanmean(area)) if np.isfinite(area).any() else 0.0
-
-
-def _sample(length: int) -> np.ndarray:
-    """The frames (up to BACKGROUND_FRAMES, spread over the clip) the static scene is the median of."""
-    return np.unique(np.linspace(0, length - 1, min(length, BACKGROUND_FRAMES)).round().astype(int))
-
-
-def _noise(frames: np.ndarray, background: np.ndarray) -> float:
-    """The noise of a frame's difference from the background, as a standard deviation: most
-    pixels show only noise."""
-    return float(1.4826 * np.median(np.abs(frames[:, ::2, ::2].astype(np.int16) - background[::2, ::2]))) + 0.5
 
 
 def _paths(found: dict[int, list[tuple[float, float, float, float]]], length: int,

@@ -48,7 +48,7 @@ def read_line(stack: np.ndarray, path: np.ndarray, sample: np.ndarray, backgroun
     seen = np.isfinite(path[:, 0])
     if seen.sum() < 8:
         return None
-    spread = np.nanpercentile(path[seen], 95, axis=0) - np.nanpercentile(path[seen], 5, axis=0)
+    spread = np.subtract(*np.percentile(path[seen], [95, 5], axis=0))
     if spread[1] <= spread[0]:
         return None  # a band of water grows and shrinks up and down: a cart rolling across is no level
     columns = _columns(stack[sample], background, path, noise)
