@@ -1,5 +1,6 @@
 """The object tracker (fitode.video.follow): where the object is, and where it is hidden."""
 import numpy as np
+import pytest
 
 from fitode.synth import render as R
 from fitode.video.follow import choose, follow_best, scatter, switches
@@ -140,10 +141,12 @@ def test_the_reader_follows_the_object_where_the_change_detectors_path_switches(
     assert float(np.sqrt(np.mean(err ** 2))) < 0.3
 
 
-def test_a_large_object_that_covers_its_own_place_is_read_at_its_centre():
+@pytest.mark.parametrize("light, dark", [(0.7, 0.3), (0.55, 0.1)])
+def test_a_large_object_that_covers_its_own_place_is_read_at_its_centre(light, dark):
     # a printed block a third of the frame wide swinging by less than its width, its light bands the
-    # wall's grey: the change from the clip's median frame is a crescent of it, and its middle is
-    # the wall's colour, yet its place is its centre, not the crescent's
+    # wall's grey or near it: the change from the clip's median frame is a crescent of it, its middle
+    # is the wall's colour, and its top and bottom edges stand where the median frame holds the
+    # block (they were read 0.8 px off), yet its place is its centre, not the crescent's
     n, h, w = 60, 100, 150
     wall = (0.7 + 0.03 * R.value_noise(np.random.default_rng(2), h, w, (4, 12))).astype(np.float32)
     t = np.arange(n) / 30.0
@@ -157,10 +160,11 @@ def test_a_large_object_that_covers_its_own_place_is_read_at_its_centre():
         def body(xx, yy, x=x):
             band = np.sin(3 * np.pi * (xx - x) / 25 + 2 * (yy - cy) / 18) > 0
             edge = np.minimum(25 - np.abs(xx - x), 18 - np.abs(yy - cy)) < 3.0
-            return np.where(edge, 0.25, np.where(band, 0.7, 0.3))
+            return np.where(edge, 0.25, np.where(band, light, dark))
         cv.paint(R.box(x, cy, 25, 18, radius=2), body, (x - 27, cy - 20, x + 27, cy + 20))
         frames[i] = np.clip(cv.image * 255 + 0.5, 0, 255).astype(np.uint8)
     found = follow_best(frames, measure_paths(frames, MAX_OBJECTS)[0])
     assert found is not None and not found.hidden.any()
     truth = np.stack([cx, np.full(n, cy)], axis=1) - 0.5
-    assert np.abs(np.median(found.xy - truth, axis=0)).max() < 1.0
+    err = np.linalg.norm(found.xy - truth, axis=1)
+    assert float(np.sqrt(np.mean(err ** 2))) < 0.3

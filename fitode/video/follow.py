@@ -20,9 +20,10 @@ in a window around the place its last two positions predict:
   sub-pixel place first) as it turns and its lighting changes.
 
 The place read is the template's reference point: the centre of the object in the seed frame
-(each pixel weighted by how much of it the object covers), cut, once its motion is known, from
-what moves with it (_recentre): the seed's own cut is a crescent where the object covers its place
-in the static scene.
+(each pixel weighted by how much of it the object covers, an edge pixel by its change over that of
+the object's inside next to it), cut, once its motion is known, from what moves with it and then
+from each frame against the static scene with the object taken out (_recentre): the seed's own cut
+is a crescent where the object covers its place in the static scene.
 
 The reader (fitode.video.track.TrackRecorder) takes this track where the change detector's path
 switches between moving things and this one follows another, or where both follow the same object
@@ -47,6 +48,7 @@ PEAKS = 1         # the correlation's peaks refined where the best is not a good
 MARGIN = 2        # pixels of background kept around the object's mask in the template
 OFFSET = 0.25     # the largest change of the object's brightness (beyond a gain) a match allows, in its contrasts
 BACKGROUND_FRAMES = 48  # frames spread over the clip whose median is the static scene (static_scene)
+OWN_FRAMES = 16  # frames whose own change places the object's centre (_recentre)
 RING_QUANTILE = 0.25  # the share of the ring around the object that must still show what surrounded it
 
 
@@ -305,7 +307,7 @@ def _cut(frame, background, noise, near, change=None, bridge: int = 0):
     if core.size < 2:
         return None
     full = max(float(np.quantile(core, 0.1)), low)
-    cover = np.clip(change / full, 0.0, 1.0)
+    cover = _cover(change, filled, bridged, full, low)
     cover = np.where((filled > region) | (bridged & (region > 0)), 1.0, np.where(cv2.dilate(filled, None) > 0, cover, 0.0))
     area = float(cover.sum())
     x0, y0 = max(bx - MARGIN, 0), max(by - MARGIN, 0)
@@ -321,6 +323,23 @@ def _cut(frame, background, noise, near, change=None, bridge: int = 0):
     weight = np.where(inner > 0, 1.0, np.where(ring > 0, 0.5, 0.0)).astype(np.float32)
     template = frame[y0:y1, x0:x1].astype(np.float32)
     return template, weight, centre - np.array([x0, y0]), (x0, y0, x1, y1), area, centre
+
+
+def _cover(change, filled, bridged, full, low) -> np.ndarray:
+    """How much of each pixel the object covers (H, W), from 0 to 1: wholly two pixels and more
+    inside its outline (filled), where the camera's blur no longer reaches the background; on
+    its edge, its change over the change of the object's inside next to it. One level for the
+    whole object would weigh a printed object's bands that differ less from the wall as part
+    covered and move its centre towards those that differ most (a banded block: 0.5-0.9 px);
+    an edge where a band meets the wall differs as that band does. full: the level where no
+    inside lies near (an object too small to have one)."""
+    deep = (cv2.erode(filled, np.ones((3, 3), np.uint8)) > 0) & ~bridged
+    if not deep.any():
+        return np.clip(change / full, 0.0, 1.0)
+    near = cv2.boxFilter(deep.astype(np.float32), -1, (3, 3), normalize=False)
+    level = cv2.boxFilter(np.where(deep, change, 0.0).astype(np.float32), -1, (3, 3), normalize=False)
+    local = np.where(near > 0, level / np.maximum(near, 1e-6), full)
+    return np.where(deep, 1.0, np.clip(change / np.maximum(local, low), 0.0, 1.0)).astype(np.float32)
 
 
 def _aligned(new_weight, old_weight, old_ref, pad: int = 6) -> np.ndarray:
@@ -354,15 +373,60 @@ def _recentre(stack, xy, t0, shape, ref, noise, background) -> np.ndarray:
     median over up to 48 frames is what moves with the object: the whole of it, wherever it
     stood clear of its median place in most of them (what crosses behind it does not follow it).
     The object is cut from that, its parts joined across gaps up to a quarter of its narrower side
-    (a printed block's bands the colour of the wall change nothing)."""
+    (a printed block's bands the colour of the wall change nothing). An edge along the object's
+    motion stays where the median frame holds the object (a block swinging sideways: its top and
+    bottom, by pixels), so the cut is made again against the scene with the object taken out
+    (_without)."""
     seen = np.flatnonzero(np.isfinite(xy[:, 0]))
     if len(seen) < 8 or not np.isfinite(xy[t0, 0]):
         return np.zeros(2)
-    h, w = stack.shape[1:]
     sample = seen[np.unique(np.linspace(0, len(seen) - 1, min(len(seen), 48)).round().astype(int))]
     th, tw = shape
-    corner = xy[t0] - ref  # the template's top-left corner in the seed frame
+    cut = _whole(stack, xy, t0, sample, xy[t0] - ref, (th, tw), noise, background)
+    if cut is None:
+        return np.zeros(2)
+    bx0, by0, bx1, by1 = cut[3]
+    clear = _without(stack, xy, t0, sample, cut[3], background)
+    again = _whole(stack, xy, t0, sample, np.array([bx0, by0], np.float64), (by1 - by0, bx1 - bx0), noise, clear)
+    if again is None:
+        return cut[5] - xy[t0]
+    # the centre from each frame's own change inside the object's outline, not from the moved
+    # frames: those are resampled at a fraction of a pixel, which smears each edge by its own
+    # contrast (a striped ball on a textured wall: a fifth of a pixel); the median over up to
+    # OWN_FRAMES frames in which the object has its usual area (a frame's edge pixels read its
+    # cover through the wall's texture and the camera's noise)
+    weight, (bx0, by0, bx1, by1) = again[1], again[3]
+    outline = cv2.dilate((weight > 0).astype(np.uint8), np.ones((5, 5), np.uint8))
+    side = min(by1 - by0, bx1 - bx0)
+    h, w = stack.shape[1:]
+    shifts, areas = [], []
+    for t in sample[np.unique(np.linspace(0, len(sample) - 1, min(len(sample), OWN_FRAMES)).round().astype(int))]:
+        dx, dy = (xy[t] - xy[t0]).round().astype(int)
+        inside = np.zeros((h, w), np.uint8)
+        ox0, oy0 = bx0 + dx, by0 + dy
+        ix0, iy0, ix1, iy1 = max(ox0, 0), max(oy0, 0), min(ox0 + outline.shape[1], w), min(oy0 + outline.shape[0], h)
+        if ix1 <= ix0 or iy1 <= iy0:
+            continue
+        inside[iy0:iy1, ix0:ix1] = outline[iy0 - oy0:iy1 - oy0, ix0 - ox0:ix1 - ox0]
+        own = np.where(inside > 0, cv2.absdiff(stack[t], clear), 0).astype(np.float32)
+        cut = _cut(stack[t], None, noise, xy[t], own, bridge=2 * (side // 8) + 1)
+        if cut is not None:
+            shifts.append(cut[5] - xy[t])
+            areas.append(cut[4])
+    if not shifts:
+        return again[5] - xy[t0]
+    typical = np.abs(np.log(np.array(areas) / np.median(areas))) <= 0.1
+    return np.median(np.array(shifts)[typical], axis=0)
+
+
+def _whole(stack, xy, t0, sample, corner, shape, noise, background):
+    """The object cut (as _cut) in the seed frame t0 from the median of the sampled frames' change
+    from the background, each moved back with the object; the window around the box at corner
+    (x, y) of shape (h, w) widens until the object fits. None where nothing is cut."""
+    h, w = stack.shape[1:]
+    th, tw = shape
     grow = max(th, tw) + 4  # the crescent may be a small part of the object: the window widens until the object fits
+    cut = None
     for _ in range(3):
         x0, y0 = int(max(math.floor(corner[0]) - grow, 0)), int(max(math.floor(corner[1]) - grow, 0))
         x1, y1 = int(min(math.ceil(corner[0]) + tw + grow, w)), int(min(math.ceil(corner[1]) + th + grow, h))
@@ -384,17 +448,53 @@ def _recentre(stack, xy, t0, shape, ref, noise, background) -> np.ndarray:
         hot = cv2.morphologyEx((change > 4.0 * noise).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
         ys, xs = np.nonzero(hot)
         if not len(xs):
-            return np.zeros(2)
+            return None
         side = min(int(np.ptp(xs)), int(np.ptp(ys))) + 1
         cut = _cut(stack[t0], None, noise, xy[t0], change, bridge=2 * (side // 8) + 1)
         if cut is None:
-            return np.zeros(2)
+            return None
         bx0, by0, bx1, by1 = cut[3]
-        inside = (bx0 > x0 or x0 == 0) and (by0 > y0 or y0 == 0) and (bx1 < x1 or x1 == w) and (by1 < y1 or y1 == h)
-        if inside:
+        if (bx0 > x0 or x0 == 0) and (by0 > y0 or y0 == 0) and (bx1 < x1 or x1 == w) and (by1 < y1 or y1 == h):
             break
         grow *= 2
-    return cut[5] - xy[t0]
+    return cut
+
+
+def _without(stack, xy, t0, sample, box, background) -> np.ndarray:
+    """The static scene (H, W) uint8 with the object taken out: where the object passed, each
+    pixel's median over the sampled frames in which the object's box (box: (x0, y0, x1, y1) in
+    frame t0, widened by a tenth of its size for what the cut missed of it) lay elsewhere; a pixel
+    the box covered in all but two of them is drawn in from around it (cv2.inpaint). The clip's
+    median frame holds the object wherever it stood more than half the time."""
+    h, w = stack.shape[1:]
+    x0, y0, x1, y1 = box
+    pad = max(3, int(math.ceil(0.1 * max(x1 - x0, y1 - y0))))
+    x0, y0, x1, y1 = x0 - pad, y0 - pad, x1 + pad, y1 + pad
+    moves = (xy[sample] - xy[t0]).round().astype(int)
+    # the swept region: where the object's box lay in any sampled frame
+    sx0, sy0 = max(x0 + int(moves[:, 0].min()), 0), max(y0 + int(moves[:, 1].min()), 0)
+    sx1, sy1 = min(x1 + int(moves[:, 0].max()), w), min(y1 + int(moves[:, 1].max()), h)
+    if sx1 <= sx0 or sy1 <= sy0:
+        return background
+    few = max(8, min(len(sample), 2 ** 26 // (4 * (sy1 - sy0) * (sx1 - sx0))))  # at most 64 MiB
+    pick = np.unique(np.linspace(0, len(sample) - 1, few).round().astype(int))
+    crops = np.empty((len(pick), sy1 - sy0, sx1 - sx0), np.float32)
+    for i, k in enumerate(pick):
+        crops[i] = stack[sample[k], sy0:sy1, sx0:sx1]
+        dx, dy = moves[k]
+        crops[i, max(y0 + dy - sy0, 0):max(y1 + dy - sy0, 0), max(x0 + dx - sx0, 0):max(x1 + dx - sx0, 0)] = np.nan
+    clear = background.copy()
+    with warnings.catch_warnings():  # a pixel the object covered in every sampled frame
+        warnings.simplefilter("ignore", RuntimeWarning)
+        part = np.nanmedian(crops, axis=0)
+    unseen = (np.isfinite(crops).sum(axis=0) < 3).astype(np.uint8)
+    part = np.where(unseen > 0, background[sy0:sy1, sx0:sx1], np.nan_to_num(part)).round().clip(0, 255).astype(np.uint8)
+    clear[sy0:sy1, sx0:sx1] = part
+    if unseen.any():
+        hole = np.zeros((h, w), np.uint8)
+        hole[sy0:sy1, sx0:sx1] = unseen
+        clear = cv2.inpaint(clear, hole, 3, cv2.INPAINT_TELEA)
+    return clear
 
 
 def _find(frame, template, weight, ref, guess, reach, angle=0.0):
