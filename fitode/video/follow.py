@@ -22,7 +22,7 @@ in a window around the place its last two positions predict:
 The place read is the template's reference point: the centre of the object in the seed frame
 (each pixel weighted by how much of it the object covers, an edge pixel by its change over that of
 the object's inside next to it), cut, once its motion is known, from what moves with it and then
-from each frame against the static scene with the object taken out (_recentre): the seed's own cut
+from each frame against the static scene with the object taken out (_outline, _centre): the seed's own cut
 is a crescent where the object covers its place in the static scene.
 
 The reader (fitode.video.track.TrackRecorder) takes this track where the change detector's path
@@ -48,7 +48,8 @@ PEAKS = 1         # the correlation's peaks refined where the best is not a good
 MARGIN = 2        # pixels of background kept around the object's mask in the template
 OFFSET = 0.25     # the largest change of the object's brightness (beyond a gain) a match allows, in its contrasts
 BACKGROUND_FRAMES = 48  # frames spread over the clip whose median is the static scene (static_scene)
-OWN_FRAMES = 16  # frames whose own change places the object's centre (_recentre)
+WHOLE = 1.2      # the object followed again with its whole cut where that has this many times the seed cut's area
+OWN_FRAMES = 16  # frames whose own change places the object's centre (_centre)
 RING_QUANTILE = 0.25  # the share of the ring around the object that must still show what surrounded it
 
 
@@ -84,6 +85,31 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
     if cut is None:
         return None
     t0, template, weight, ref, area, start = cut
+    xy, sigma, score, rigid = _track(stack, seed_xy, t0, template, weight, ref, area, start, background, noise)
+    shift = np.zeros(2)
+    outline = _outline(stack, xy, t0, template.shape, ref, noise, background)
+    if outline is not None:
+        sample, cut, clear = outline
+        shift, whole = _centre(stack, xy, t0, sample, cut, clear, noise)
+        if whole is not None and whole[4] >= WHOLE * area:
+            # the seed's cut was a crescent of the object (it covered its own place in the static
+            # scene): a template without one of its ends leaves the object free to slide along it
+            # where something passes behind the other (the can on its spring: 7 px as a leg
+            # passed), and its reference point, away from the centre, turns about it as it turns
+            template, weight, ref, _, area, at = whole
+            xy, sigma, score, rigid = _track(stack, seed_xy, t0, template, weight, ref, area, at, background, noise)
+            shift, _ = _centre(stack, xy, t0, sample, cut, clear, noise)
+    xy += shift
+    seen = np.isfinite(xy[:, 0])
+    note = (f"the object followed by its appearance (a template of {area:.0f} pixels cut from frame {t0}, "
+            f"hidden in {int((~seen).sum())} of {t_all} frames)")
+    return Followed(xy, sigma, score, t0, float(area), note, rigid)
+
+
+def _track(stack, seed_xy, t0, template, weight, ref, area, start, background, noise):
+    """The template (its reference point at start in frame t0) followed forwards and backwards
+    from t0: (xy, sigma, score, rigid), each (T, ...) as Followed's, xy the reference point's place."""
+    t_all = len(stack)
     xy = np.full((t_all, 2), np.nan)
     sigma = np.full(t_all, np.nan)
     score = np.full(t_all, np.nan)
@@ -166,12 +192,7 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
         xy[doubt], sigma[doubt] = np.nan, np.nan
     if np.isfinite(sigma).sum() > 1:  # the seed frame matches itself exactly: its error is like its neighbours'
         sigma[t0] = float(np.nanmedian(np.delete(sigma, t0)))
-    shift = _recentre(stack, xy, t0, template.shape, ref, noise, background)
-    xy += shift
-    seen = np.isfinite(xy[:, 0])
-    note = (f"the object followed by its appearance (a template of {area:.0f} pixels cut from frame {t0}, "
-            f"hidden in {int((~seen).sum())} of {t_all} frames)")
-    return Followed(xy, sigma, score, t0, float(area), note, rigid)
+    return xy, sigma, score, rigid
 
 
 def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
@@ -364,59 +385,73 @@ def _aligned(new_weight, old_weight, old_ref, pad: int = 6) -> np.ndarray:
     return np.array(sub) - pad + np.asarray(old_ref, dtype=np.float64)
 
 
-def _recentre(stack, xy, t0, shape, ref, noise, background) -> np.ndarray:
-    """The shift (2,) from the template's reference point to the object's centre. The seed's cut
-    is the change from the clip's median frame, and where the object covers its own median place
-    (a large object, a slow swing) that median holds part of it: the cut is a crescent, and which
-    part is missing moves as the object does. Once the object's motion is known, each frame's
-    change from the median frame is moved back with the object onto the seed frame, and the
-    median over up to 48 frames is what moves with the object: the whole of it, wherever it
-    stood clear of its median place in most of them (what crosses behind it does not follow it).
-    The object is cut from that, its parts joined across gaps up to a quarter of its narrower side
-    (a printed block's bands the colour of the wall change nothing). An edge along the object's
-    motion stays where the median frame holds the object (a block swinging sideways: its top and
-    bottom, by pixels), so the cut is made again against the scene with the object taken out
-    (_without)."""
+def _outline(stack, xy, t0, shape, ref, noise, background):
+    """The whole object's outline in the seed frame t0, once its motion (xy: the template's
+    reference point's place per frame) is known: (sample, cut, clear) with the frames it is read
+    over, its cut (as _cut) and the static scene with the object taken out; None where no cut is
+    made. The seed's cut is the change from the clip's median frame, and where the object covers
+    its own median place (a large object, a slow swing) that median holds part of it: the cut is a
+    crescent, and which part is missing moves as the object does. Each frame's change from the
+    median frame is moved back with the object onto the seed frame, and the median over up to 48
+    frames is what moves with the object: the whole of it, wherever it stood clear of its median
+    place in most of them (what crosses behind it does not follow it). The object is cut from
+    that, its parts joined across gaps up to a quarter of its narrower side (a printed block's
+    bands the colour of the wall change nothing). An edge along the object's motion stays where
+    the median frame holds the object (a block swinging sideways: its top and bottom, by pixels),
+    so the cut is made again against the scene with the object taken out (_without)."""
     seen = np.flatnonzero(np.isfinite(xy[:, 0]))
     if len(seen) < 8 or not np.isfinite(xy[t0, 0]):
-        return np.zeros(2)
+        return None
     sample = seen[np.unique(np.linspace(0, len(seen) - 1, min(len(seen), 48)).round().astype(int))]
     th, tw = shape
     cut = _whole(stack, xy, t0, sample, xy[t0] - ref, (th, tw), noise, background)
     if cut is None:
-        return np.zeros(2)
+        return None
     bx0, by0, bx1, by1 = cut[3]
     clear = _without(stack, xy, t0, sample, cut[3], background)
     again = _whole(stack, xy, t0, sample, np.array([bx0, by0], np.float64), (by1 - by0, bx1 - bx0), noise, clear)
-    if again is None:
-        return cut[5] - xy[t0]
-    # the centre from each frame's own change inside the object's outline, not from the moved
-    # frames: those are resampled at a fraction of a pixel, which smears each edge by its own
-    # contrast (a striped ball on a textured wall: a fifth of a pixel); the median over up to
-    # OWN_FRAMES frames in which the object has its usual area (a frame's edge pixels read its
-    # cover through the wall's texture and the camera's noise)
-    weight, (bx0, by0, bx1, by1) = again[1], again[3]
-    outline = cv2.dilate((weight > 0).astype(np.uint8), np.ones((5, 5), np.uint8))
+    return (sample, cut, background) if again is None else (sample, again, clear)
+
+
+def _centre(stack, xy, t0, sample, outline, clear, noise):
+    """The shift (2,) from the places xy (T, 2) to the object's centre, and the whole object cut
+    in frame t0 (as _cut; None where it was not cut there with its usual area); outline: its cut
+    in frame t0 (_outline). The centre is read from each frame's own change from the scene without
+    the object (clear) inside the outline, not from the moved frames: those are resampled at a
+    fraction of a pixel, which smears each edge by its own contrast (a striped ball on a textured
+    wall: a fifth of a pixel); the median over up to OWN_FRAMES frames in which the object has its
+    usual area (a frame's edge pixels read its cover through the wall's texture and the camera's
+    noise). The shift is taken in the frame's axes: it holds as the object turns only where xy
+    is near its centre."""
+    weight, (bx0, by0, bx1, by1) = outline[1], outline[3]
+    ring = cv2.dilate((weight > 0).astype(np.uint8), np.ones((5, 5), np.uint8))
     side = min(by1 - by0, bx1 - bx0)
     h, w = stack.shape[1:]
-    shifts, areas = [], []
-    for t in sample[np.unique(np.linspace(0, len(sample) - 1, min(len(sample), OWN_FRAMES)).round().astype(int))]:
+    shifts, areas, whole = [], [], None
+    few = sample[np.unique(np.linspace(0, len(sample) - 1, min(len(sample), OWN_FRAMES)).round().astype(int))]
+    for t in np.union1d(few, [t0]):
+        if not np.isfinite(xy[t, 0]):
+            continue
         dx, dy = (xy[t] - xy[t0]).round().astype(int)
         inside = np.zeros((h, w), np.uint8)
         ox0, oy0 = bx0 + dx, by0 + dy
-        ix0, iy0, ix1, iy1 = max(ox0, 0), max(oy0, 0), min(ox0 + outline.shape[1], w), min(oy0 + outline.shape[0], h)
+        ix0, iy0, ix1, iy1 = max(ox0, 0), max(oy0, 0), min(ox0 + ring.shape[1], w), min(oy0 + ring.shape[0], h)
         if ix1 <= ix0 or iy1 <= iy0:
             continue
-        inside[iy0:iy1, ix0:ix1] = outline[iy0 - oy0:iy1 - oy0, ix0 - ox0:ix1 - ox0]
+        inside[iy0:iy1, ix0:ix1] = ring[iy0 - oy0:iy1 - oy0, ix0 - ox0:ix1 - ox0]
         own = np.where(inside > 0, cv2.absdiff(stack[t], clear), 0).astype(np.float32)
         cut = _cut(stack[t], None, noise, xy[t], own, bridge=2 * (side // 8) + 1)
         if cut is not None:
             shifts.append(cut[5] - xy[t])
             areas.append(cut[4])
+            if t == t0:
+                whole = cut
     if not shifts:
-        return again[5] - xy[t0]
+        return outline[5] - xy[t0], None
     typical = np.abs(np.log(np.array(areas) / np.median(areas))) <= 0.1
-    return np.median(np.array(shifts)[typical], axis=0)
+    if whole is not None and abs(math.log(whole[4] / float(np.median(areas)))) > 0.1:
+        whole = None
+    return np.median(np.array(shifts)[typical], axis=0), whole
 
 
 def _whole(stack, xy, t0, sample, corner, shape, noise, background):
