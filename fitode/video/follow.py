@@ -267,10 +267,12 @@ def _seed(stack, seed_xy, background, noise):
     return best, template, weight, ref, area, centre
 
 
-def _cut(frame, background, noise, near, change=None, bridge: int = 0):
+def _cut(frame, background, noise, near, change=None, bridge: int = 0, centre: bool = False):
     """The object around `near` in one frame: (template, weight, ref, box, area, centre) or None
     (change: the frame's change from the static scene, where the caller knows it better; bridge:
-    the width in pixels of the gaps closed between its parts, which then count as the object's)."""
+    the width in pixels of the gaps closed between its parts, which then count as the object's;
+    centre: the cut places the object's centre, its edge pixels weighed as _cover does, not by one
+    level of full change for the whole object, as the template's mask is)."""
     if change is None:
         change = cv2.absdiff(frame, background).astype(np.float32)
     h, w = change.shape
@@ -328,7 +330,7 @@ def _cut(frame, background, noise, near, change=None, bridge: int = 0):
     if core.size < 2:
         return None
     full = max(float(np.quantile(core, 0.1)), low)
-    cover = _cover(change, filled, bridged, full, low)
+    cover = _cover(change, filled, bridged, full, low) if centre else np.clip(change / full, 0.0, 1.0)
     cover = np.where((filled > region) | (bridged & (region > 0)), 1.0, np.where(cv2.dilate(filled, None) > 0, cover, 0.0))
     area = float(cover.sum())
     x0, y0 = max(bx - MARGIN, 0), max(by - MARGIN, 0)
@@ -440,7 +442,7 @@ def _centre(stack, xy, t0, sample, outline, clear, noise):
             continue
         inside[iy0:iy1, ix0:ix1] = ring[iy0 - oy0:iy1 - oy0, ix0 - ox0:ix1 - ox0]
         own = np.where(inside > 0, cv2.absdiff(stack[t], clear), 0).astype(np.float32)
-        cut = _cut(stack[t], None, noise, xy[t], own, bridge=2 * (side // 8) + 1)
+        cut = _cut(stack[t], None, noise, xy[t], own, bridge=2 * (side // 8) + 1, centre=True)
         if cut is not None:
             shifts.append(cut[5] - xy[t])
             areas.append(cut[4])
@@ -485,7 +487,7 @@ def _whole(stack, xy, t0, sample, corner, shape, noise, background):
         if not len(xs):
             return None
         side = min(int(np.ptp(xs)), int(np.ptp(ys))) + 1
-        cut = _cut(stack[t0], None, noise, xy[t0], change, bridge=2 * (side // 8) + 1)
+        cut = _cut(stack[t0], None, noise, xy[t0], change, bridge=2 * (side // 8) + 1, centre=True)
         if cut is None:
             return None
         bx0, by0, bx1, by1 = cut[3]
