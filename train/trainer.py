@@ -192,6 +192,7 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
               "bends": observation.can_bend, "bend_floor": observation.bend_floor,
               "physical_units": observation.fixes_scale() or len(units) == len(system.states), "units": units,
               "length": _length_record(observation, units), "subspace": prepared.note, "rank": prepared.rank,
+              "hints": [prepared.hint] if prepared.hint else [],
               "gauge": {s: g.describe() for s, g in gauges.items()}, "own_units": sorted(own_units),
               "left_out": fit.left_out, "measurement": prepared.drawing, **extra_meta},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},
