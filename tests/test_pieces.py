@@ -285,3 +285,18 @@ def test_a_slow_drain_is_no_hold():
         x = h + np.random.default_rng(seed).normal(0, 0.07, len(t))
         pieces = find_pieces(x[:, None], dt, parabola_fit(x))
         assert pieces.spans == [(0, len(t))] and not any(e.kind == "hold" for e in pieces.events)
+
+
+def test_a_short_hold_filmed_fast_is_a_rest():
+    # a throw held 0.1 s at 240 fps (24 frames): the rest's window is at most REST_FRAMES frames, so
+    # the hold is seen (a 0.2 s window, 48 frames, saw none, and one trajectory through the hold and
+    # the flight of a generated 60-frame throw gave g -3873 px/s^2 for 1255); at 30 fps the window
+    # stays 0.2 s
+    from fitode.train.stretch import REST_FRAMES, at_rest, rest_window
+
+    dt = 1 / 240
+    t = np.arange(60) * dt - 24 * dt
+    y = np.where(t < 0, 0.0, 400 * t - 627.5 * t ** 2) + np.random.default_rng(5).normal(0, 0.05, len(t))
+    rest = at_rest(y[:, None], dt, 0.05)
+    assert rest[:20].all() and not rest[26:].any()
+    assert rest_window(dt) == REST_FRAMES and rest_window(1 / 30) == 6

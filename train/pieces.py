@@ -28,7 +28,7 @@ from typing import Callable
 
 import numpy as np
 
-from .stretch import BREAK, MIN_SEED, REST_SECONDS, REST_SIGMAS, TOL, at_rest, find_stretch, noise_level
+from .stretch import BREAK, MIN_SEED, REST_SIGMAS, TOL, at_rest, find_stretch, noise_level, rest_window
 
 JUMP = 6.0        # an impact: the velocities either side of a frame differ by this many times their noise
 MOVING = 2.0      # ... and turn round, at least this many times that noise fast either side
@@ -399,7 +399,7 @@ def _still(x: np.ndarray, rest: np.ndarray, noise: float, dt: float) -> np.ndarr
     moving = np.flatnonzero(~rest)
     end = len(x) if len(moving) == 0 else int(moving[0])
     # (a rest's last window of frames may hold the first of the motion: at_rest marks whole windows)
-    held = end - (0 if len(moving) == 0 else max(3, int(round(REST_SECONDS / dt))))
+    held = end - (0 if len(moving) == 0 else rest_window(dt))
     if held < RELEASE_MIN:
         return rest
     lo, hi = np.percentile(x[:held], [2, 98], axis=0)

@@ -106,9 +106,10 @@ def _tilt_hint(xy: torch.Tensor, states: tuple[str, ...], axes: list[str]) -> st
     if along <= 0 or 1.0 / along - 1.0 < TILT:
         return None
     degrees = math.degrees(math.acos(min(along, 1.0)))
-    return (f"{states[0]} is read {'across' if axes[0] == 'x' else 'up'} the image, as its name says, but the object "
+    return (f"{states[0]} is read {'across' if axes[0] == 'x' else 'up'} the image, as its name says; the object "
             f"moves along a straight line {degrees:.1f} degrees from that axis, where its path is "
-            f"{100 * (1.0 / along - 1.0):.2g}% longer: name the state s to measure it along the line (positive the way it first moves)")
+            f"{100 * (1.0 / along - 1.0):.2g}% longer: where the equation is of the distance along that line (a slide, "
+            "a cart on an incline), name the state s to measure it so (positive the way it first moves)")
 
 
 # what a position reads: the change's centroid, the object followed by its appearance where the
