@@ -80,6 +80,11 @@ def test_a_throw_that_leaves_the_view_ends_there_and_is_no_bounce_into_what_foll
         pieces = find_pieces(y[:, None], dt, parabola_fit(y))
         assert pieces.spans == [(hold + 1, gone)]
         assert [e.kind for e in pieces.events] == ["hold", "release", "lost"]
+        # where the reader's track says it lost the ball there, the motion leaves the view
+        unseen = np.arange(n) >= gone
+        pieces = find_pieces(y[:, None], dt, parabola_fit(y), unseen=unseen)
+        assert [e.kind for e in pieces.events] == ["hold", "release", "gone"]
+        assert pieces.describe(dt, n_frames=n).endswith(f"leaves the view at {gone * dt:.2f} s")
 
 
 def test_find_pieces_cuts_the_hold_and_every_bounce_and_says_so():

@@ -434,7 +434,9 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
         else:
             unread = np.zeros(n, dtype=bool)
             unread[[i for i in mended if i < n]] = True
-            pieces = find_pieces(latent[:n], plan.dt, fit, unread=unread)
+            track = getattr(plan.observation, "track", None)
+            unseen = np.isnan(track.xy[:n, 0]) if track is not None and len(track) >= n else None
+            pieces = find_pieces(latent[:n], plan.dt, fit, unread=unread, unseen=unseen)
             if len(pieces.spans) > 1 and plan.observation.measured:
                 pieces = _same_motion(latent[:n], pieces, plan, warm)
             found = _longest(latent[:n], pieces, plan.dt) if pieces.spans else find_stretch(latent[:n], plan.dt, fit)
