@@ -109,6 +109,16 @@ def truth_of(scene_name: str, video) -> float:
 IMPACT_FRAMES = 3
 
 
+def clicked_ruler(ruler: dict[str, Any], rng: np.random.Generator) -> str:
+    """The scene's ruler as a user gives it: each end clicked off by N(0, 1) pixel along each axis,
+    the error fitode's --scale assumes (fitode.scale.END_STD), so that its share of the interval is
+    tried, not only granted."""
+    from fitode.scale import END_STD
+
+    (x1, y1), (x2, y2) = (np.asarray(ruler[k], dtype=float) + rng.normal(0.0, END_STD, 2) for k in ("p1", "p2"))
+    return f"{x1:.2f},{y1:.2f},{x2:.2f},{y2:.2f}={ruler['metres']:g}"
+
+
 def calibration_points(clip, video, state: str) -> str:
     """The true state at the kept frames where it is largest and smallest, as --calibrate text;
     never within IMPACT_FRAMES of a bounce (the state's velocity jumping between two frames): the
@@ -168,14 +178,17 @@ def fit_video(task: dict[str, Any]) -> dict[str, Any]:
         ode, _ = resolve(**eq_args)
         calibrate, scale = needs_calibration(ode, spec["quantity"])
         out["scale"] = scale
-        points = None
-        if calibrate and task.get("calibrate", True):
+        points, stick = None, None
+        ruler = (video.meta.get("physical") or {}).get("ruler")
+        if calibrate and task.get("calibrate", True) and task.get("ruler") and ruler:
+            stick = clicked_ruler(ruler, np.random.default_rng([seed, 41]))
+        elif calibrate and task.get("calibrate", True):
             clip = read_video(path)  # the same defaults as run_video, to pick frames it keeps
             points = calibration_points(clip, video, ode.states[0])
-        out["calibration"] = points
+        out["calibration"] = points or (stick and f"--scale {stick}")
         t1 = time.perf_counter()
         try:
-            outcome = run_job(path, folder / "run", calibrate=points, log=None, progress=False,
+            outcome = run_job(path, folder / "run", calibrate=points, scale=stick, log=None, progress=False,
                                 **eq_args, **{**spec.get("train", {}), **task["train"]})
         except FitodeError as exc:
             out.update(status="failed", error=str(exc), estimate=math.nan, raw=math.nan, fit_s=time.perf_counter() - t1)
