@@ -175,6 +175,17 @@ def test_flights_that_scatter_alike_are_no_finding_and_widen_the_interval():
     assert wide.std["a"] == pytest.approx(plain.std["a"] * joint.scatter["a"], rel=1e-9)
 
 
+def test_flights_that_scatter_by_chance_do_not_widen_the_interval():
+    # white noise only: these flights' Birge ratio is 1.33 (chi^2 8.9 for 5 degrees of freedom, p 0.11),
+    # no more than chance gives; widening by it made the joint interval no narrower than one flight's
+    from fitode.train.joint import _pooled
+
+    x, _ = bouncing(noise=0.2, seed=4, bounces=5)
+    spans = find_pieces(x[:, None], DT, parabola_fit(x)).spans
+    joint = fit_pieces(parse("x'' = -a"), {}, x[:, None], DT, spans, {"a": 100.0})
+    assert _pooled([p["a"] for p in joint.alone])[2] > 1.2 and joint.scatter["a"] == 1.0
+
+
 def test_the_interval_resamples_every_piece():
     from fitode.train.interval import bootstrap
     x, _ = bouncing(noise=0.2, e=0.95, seed=5)  # flights alike: all of them say about twice what one does
