@@ -12,7 +12,7 @@ equation file:
 | ------------- | --------------------------------------- | -------- | ------------------------- |
 | pendulum      | theta'' = -g/L sin(theta) - zeta theta' | L        | theta at two times        |
 | torricelli    | h' = -k sqrt(h)                         | k        | h at two times            |
-| sliding_block | x'' = a (see below)                     | a        | x at two times            |
+| sliding_block | s'' = a (see below)                     | a        | s at two times            |
 | led           | I' = -gamma (I - c), --encoder linear    | gamma    | none (scale-free)         |
 | free_fall     | d'' = g                                 | g        | d at two times            |
 
@@ -24,7 +24,8 @@ uncalibrated estimate (latent units) is shown beside it.
 
 sliding_block: the shipped file's x'' = g (sin(alpha) - mu cos(alpha)) fixes only that
 combination (the identifiability report says so), so the bench fits the measurable acceleration
-directly, x'' = a, the paper's reported quantity. led: `fitode check` advises the linear
+directly, s'' = a, the paper's reported quantity (s along the incline: a state named x would be read
+along the image's horizontal, a cos(alpha), as a user who writes x asks). led: `fitode check` advises the linear
 encoder for a first-order linear equation (an MLP can report I**p, which decays at p*gamma), so
 the bench passes encoder="linear"; every other option is TrainConfig's default.
 
@@ -62,7 +63,7 @@ G = 9.80665
 SPEC: dict[str, dict[str, Any]] = {
     "pendulum": {"system": "pendulum", "quantity": "L", "unit": "m"},
     "torricelli": {"system": "torricelli", "quantity": "k", "unit": "m^0.5/s"},
-    "sliding_block": {"eq": "x'' = a", "quantity": "a", "unit": "m/s^2"},
+    "sliding_block": {"eq": "s'' = a", "quantity": "a", "unit": "m/s^2"},
     # `fitode check --system led_decay`: "a nonlinear encoder (mlp, cnn) can report any rate; fit it
     # with --encoder linear" -- the bench takes the tool's advice, as a user would
     "led": {"system": "led_decay", "quantity": "gamma", "unit": "1/s", "train": {"encoder": "linear"}},
