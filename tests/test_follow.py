@@ -168,3 +168,5 @@ def test_a_large_object_that_covers_its_own_place_is_read_at_its_centre(light, d
     truth = np.stack([cx, np.full(n, cy)], axis=1) - 0.5
     err = np.linalg.norm(found.xy - truth, axis=1)
     assert float(np.sqrt(np.mean(err ** 2))) < 0.3
+    # followed with the whole block's cut (50 x 36 px, its corners rounded by 2), not the crescent
+    assert abs(found.area / (50 * 36 - (4 - np.pi) * 4) - 1) < 0.03
