@@ -444,8 +444,9 @@ def _minimise(loss, named: list, scales: list, iterations: int) -> tuple[bool, i
 def _lbfgs(params: list, max_iter: int, tolerance_grad: float, tolerance_change: float):
     """torch's L-BFGS (strong-Wolfe line search, lr 1), its steps exactly, without the bookkeeping
     of torch.optim.Optimizer: building any Optimizer imports torch._dynamo (its add_param_group and
-    zero_grad are wrapped to keep the compiler out), which took longer than importing torch itself,
-    2.5-3 s in every process that fits a trajectory, for nothing this fit uses. LBFGS.step reads
+    zero_grad are wrapped to keep the compiler out), which took as long as importing torch itself
+    (2.5-3 s, loaded machine) in every process whose fit reaches this solver (the checks of a
+    learned latent, the refit of a short calibrated path), for nothing it uses. LBFGS.step reads
     only the fields set here (and, where another LBFGS in the process had its step wrapped for the
     profiler, the two hook tables)."""
     from collections import OrderedDict, defaultdict
