@@ -4,7 +4,8 @@ Every clip is generated with seeded random constants, noise, resolution and leng
 an mp4 and fitted as a user would (fitode.pipeline.run_job, every default, the scene's shipped
 equation file; bench/realistic.py's fit_video for the realistic scenes, calibrated with the true
 state at two frames where the constant depends on the latent's units, none within 3 frames of a
-bounce). The cases:
+bounce; the clips as they are filmed are scaled instead by the scene's ruler, as a user gives it: `--scale`
+with each end clicked off by a pixel, realistic.clicked_ruler). The cases:
 
 | case            | generator                                   | varied                                   |
 | --------------- | ------------------------------------------- | ---------------------------------------- |
@@ -17,9 +18,9 @@ bounce). The cases:
 | led-linear      | realistic scene, the light stored linear    | gamma, noise, size, length               |
 | spring          | realistic scene, a ball crossing behind it  | w2, c, noise, size, length               |
 | held-pendulum   | held_pendulum: a hand holds, lets go         | L, angle, hold, tremor, noise, size      |
-| cart            | bumper_cart, calibrated: 3-5 bounces        | a, restitution, bounces, noise, size     |
-| bounce          | bouncing_ball, calibrated: 2-4 bounces      | g, restitution, bounces, noise, size     |
-| block-rest      | sliding_block at 240 fps, rests each end    | alpha, rests, noise, size                |
+| cart            | bumper_cart, its ruler clicked: 3-5 bounces | a, restitution, bounces, noise, size     |
+| bounce          | bouncing_ball, its ruler clicked: 2-4 bounces | g, restitution, bounces, noise, size   |
+| block-rest      | sliding_block at 240 fps, rests each end, its ruler clicked | alpha, rests, noise, size |
 
 Per clip: the truth, the estimate, its 95% interval, its verdict. Printed: the coverage of the
 95% intervals (how often they hold the truth), the false-trust rate (TRUSTED and outside its 99%
@@ -110,7 +111,7 @@ def clip_list(cases: list[str], seed: int, per_case: int = PER_CASE) -> list[dic
             size = SIZES[int(rng.integers(len(SIZES)))]
             scene, kwargs = _pieces_case(case, rng)
             task = {"case": case, "seed": seed * 1000 + 500 + len(PIECES_CASES) * i + j, "train": {}, "keep": None,
-                    "calibrate": True, "scene": scene, "setting": kwargs.pop("setting"),
+                    "calibrate": True, "ruler": True, "scene": scene, "setting": kwargs.pop("setting"),
                     "scene_kwargs": {**kwargs, "size": size, "noise": float(rng.uniform(0.5, 2.0))}}
             if case in SPECS:
                 task["spec"] = SPECS[case]

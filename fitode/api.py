@@ -176,7 +176,8 @@ def _execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_o
         _intervals(result, req, rate_std)
     with stage(result, "assessment"):
         assess(result, analysis, calibrated=calibrated, extra=extra).apply(result)
-    result.warnings[:0] = list(req.system.hints)  # the parser's advice stays with the numbers it concerns
+    # the parser's and the measurement's advice on what the user said stays with the numbers it concerns
+    result.warnings[:0] = list(req.system.hints) + list(result.meta.get("hints", ()))
     return result
 
 

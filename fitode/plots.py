@@ -498,7 +498,7 @@ def _shade_stretch(ax, t: np.ndarray, stretch: Mapping[str, Any] | None, train_f
 
 
 EVENT_COLOURS = {"hold": "tab:purple", "moved": "tab:purple", "release": "tab:green", "bounce": "tab:red",
-                 "stop": "0.3", "lost": "0.3"}
+                 "stop": "0.3", "lost": "0.3", "gone": "0.3"}
 
 
 def _mark_pieces(ax, t: np.ndarray, pieces: Mapping[str, Any] | None) -> None:
@@ -518,7 +518,7 @@ def _mark_pieces(ax, t: np.ndarray, pieces: Mapping[str, Any] | None) -> None:
         if e["kind"] == "release" or not 0 <= f < n:
             continue
         label = {"hold": "held until", "moved": "moved by something else until", "bounce": "a bounce",
-                 "stop": "comes to rest", "lost": "leaves the trajectory"}.get(e["kind"], e["kind"])
+                 "stop": "comes to rest", "lost": "leaves the trajectory", "gone": "leaves the view"}.get(e["kind"], e["kind"])
         ax.axvline(t[f], color=EVENT_COLOURS.get(e["kind"], "0.3"), lw=1.0, ls="--",
                    label=label if e["kind"] not in seen else None)
         seen.add(e["kind"])

@@ -251,3 +251,14 @@ def test_lightcurve_quick_counts_every_lamp_once(tmp_path, capsys):
     assert len(rec["lamps"]) == 4 and {r["curve"] for r in rec["lamps"]} == {"srgb", "linear"}
     assert all(r["outcome"] in ("right", "wrong", "untold") for r in rec["lamps"])
     assert all(r["outcome"] == "untold" or r["told"] is not None for r in rec["lamps"])
+
+
+def test_a_clicked_ruler_is_off_by_about_a_pixel_and_reads_as_a_scale():
+    from fitode.scale import END_STD, parse_scale
+
+    ruler = {"p1": [100.0, 20.0], "p2": [300.0, 20.0], "metres": 0.5}
+    rng = np.random.default_rng(0)
+    sticks = [parse_scale(realistic.clicked_ruler(ruler, rng)) for _ in range(400)]
+    ends = np.array([[*s.p1, *s.p2] for s in sticks]) - [100.0, 20.0, 300.0, 20.0]
+    assert np.std(ends, axis=0) == pytest.approx([END_STD] * 4, rel=0.15)  # each end clicked, each axis
+    assert all(s.distance == 0.5 and s.end_std == END_STD for s in sticks)  # the error the tool assumes

@@ -105,6 +105,46 @@ def test_auto_reads_the_axis_a_state_names_for_a_back_and_forth_path():
     assert not isinstance(other, PositionObservation)
 
 
+def _cart(n=150, tilt_deg=6.0):
+    """A cart's path (T, 2) on a track tilted tilt_deg from the image's x axis: let go from its top
+    end, down and to the left, bouncing back off a bumper at the foot (|s| of a sine: a bounce)."""
+    t = np.arange(n) / 30
+    s = 100 * np.abs(np.cos(1.3 * t))  # along the track, from the bumper
+    a = np.radians(tilt_deg)
+    return np.column_stack([30 + s * np.cos(a), 90 - s * np.sin(a)])
+
+
+def test_auto_reads_a_back_and_forth_straight_path_along_its_line_for_an_unnamed_length():
+    path = _cart()
+    frames = torch.from_numpy(_blob_clip([path], [4.0])[:, None] / 255.0).float()
+    track = Track(path, 50.0, 1, "generated")
+    picked = resolve_observation(None, parse("s'' = -a"), frames, track=track)
+    assert isinstance(picked, PositionObservation) and "straight line" in picked.reason
+    prepared = picked.prepare(frames, fit_frames=len(frames))
+    # positive the way it first moves: down the track, to the left
+    first = prepared.inputs[:40, 0, 0, 0].double()
+    assert float(first[-1] - first[0]) > 0 and "first moves" in prepared.note
+    # an angle under sin has its scale fixed by the equation, and a path that sways is no line
+    assert not isinstance(resolve_observation(None, parse("s'' = -w*sin(s)"), frames, track=track),
+                          PositionObservation)
+    bounce, _ = _bounce_and_crosser(120)
+    sway = torch.from_numpy(_blob_clip([bounce], [4.0])[:, None] / 255.0).float()
+    assert not isinstance(resolve_observation(None, parse("s'' = -a"), sway, track=Track(bounce, 50.0, 1, "generated")),
+                          PositionObservation)
+
+
+@pytest.mark.parametrize("tilt, said", [(6.0, True), (1.0, False)])
+def test_a_state_named_along_an_axis_is_read_so_and_a_tilted_line_is_said(tilt, said):
+    path = _cart(tilt_deg=tilt)
+    frames = torch.from_numpy(_blob_clip([path], [4.0])[:, None] / 255.0).float()
+    picked = resolve_observation(None, parse("x'' = -a"), frames, track=Track(path, 50.0, 1, "generated"))
+    prepared = picked.prepare(frames, fit_frames=len(frames))
+    assert "image axis its name says (x across)" in prepared.note
+    assert (prepared.hint is not None) == said
+    if said:
+        assert "6.0 degrees" in prepared.hint and "name the state s" in prepared.hint
+
+
 def test_a_measured_latent_is_held_to_its_own_period_not_the_frames():
     t = np.arange(300) * 0.05
     latent = np.sin(4.2 * t)[:, None]  # the height of a can

@@ -80,6 +80,11 @@ def test_a_throw_that_leaves_the_view_ends_there_and_is_no_bounce_into_what_foll
         pieces = find_pieces(y[:, None], dt, parabola_fit(y))
         assert pieces.spans == [(hold + 1, gone)]
         assert [e.kind for e in pieces.events] == ["hold", "release", "lost"]
+        # where the reader's track says it lost the ball there, the motion leaves the view
+        unseen = np.arange(n) >= gone
+        pieces = find_pieces(y[:, None], dt, parabola_fit(y), unseen=unseen)
+        assert [e.kind for e in pieces.events] == ["hold", "release", "gone"]
+        assert pieces.describe(dt, n_frames=n).endswith(f"leaves the view at {gone * dt:.2f} s")
 
 
 def test_find_pieces_cuts_the_hold_and_every_bounce_and_says_so():
@@ -168,6 +173,17 @@ def test_flights_that_scatter_alike_are_no_finding_and_widen_the_interval():
     wide = bootstrap(parse("x'' = -a"), {}, joined, DT, {"a": 150.0}, pieces=lengths, iterations=16,
                      scatter=joint.scatter)
     assert wide.std["a"] == pytest.approx(plain.std["a"] * joint.scatter["a"], rel=1e-9)
+
+
+def test_flights_that_scatter_by_chance_do_not_widen_the_interval():
+    # white noise only: these flights' Birge ratio is 1.33 (chi^2 8.9 for 5 degrees of freedom, p 0.11),
+    # no more than chance gives; widening by it made the joint interval no narrower than one flight's
+    from fitode.train.joint import _pooled
+
+    x, _ = bouncing(noise=0.2, seed=4, bounces=5)
+    spans = find_pieces(x[:, None], DT, parabola_fit(x)).spans
+    joint = fit_pieces(parse("x'' = -a"), {}, x[:, None], DT, spans, {"a": 100.0})
+    assert _pooled([p["a"] for p in joint.alone])[2] > 1.2 and joint.scatter["a"] == 1.0
 
 
 def test_the_interval_resamples_every_piece():
@@ -285,3 +301,18 @@ def test_a_slow_drain_is_no_hold():
         x = h + np.random.default_rng(seed).normal(0, 0.07, len(t))
         pieces = find_pieces(x[:, None], dt, parabola_fit(x))
         assert pieces.spans == [(0, len(t))] and not any(e.kind == "hold" for e in pieces.events)
+
+
+def test_a_short_hold_filmed_fast_is_a_rest():
+    # a throw held 0.1 s at 240 fps (24 frames): the rest's window is at most REST_FRAMES frames, so
+    # the hold is seen (a 0.2 s window, 48 frames, saw none, and one trajectory through the hold and
+    # the flight of a generated 60-frame throw gave g -3873 px/s^2 for 1255); at 30 fps the window
+    # stays 0.2 s
+    from fitode.train.stretch import REST_FRAMES, at_rest, rest_window
+
+    dt = 1 / 240
+    t = np.arange(60) * dt - 24 * dt
+    y = np.where(t < 0, 0.0, 400 * t - 627.5 * t ** 2) + np.random.default_rng(5).normal(0, 0.05, len(t))
+    rest = at_rest(y[:, None], dt, 0.05)
+    assert rest[:20].all() and not rest[26:].any()
+    assert rest_window(dt) == REST_FRAMES and rest_window(1 / 30) == 6

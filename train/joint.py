@@ -15,7 +15,8 @@ own weighted mean, with the errors widened by how far they scatter about it beyo
 depending on where the thing is moves every piece's value by more than its residuals say (a
 generated cart's flights lie 1 to 3 of their errors from the shared value, its short last flight
 near the bumper 5): that is no change of the motion, and the interval is widened by the same
-ratio over all pieces (scatter); one piece far from all the others still stands out of them.
+ratio over all pieces (scatter), where the scatter is beyond chance (its chi^2 above its 95%
+quantile); one piece far from all the others still stands out of them.
 """
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ from .interval import CENTRE_ITERATIONS, _Batch
 SIGMAS = 3.0
 APART = 0.02
 OTHERS = 3  # a piece is measured against the others' scatter where there are this many
+CHANCE = 0.95  # the pieces' scatter widens the interval where its chi^2 lies beyond this quantile
 FAR = 0.5   # a piece whose constant lies this share of the pieces' median from it (and SIGMAS of its error)
 #             is another motion, where fewer than half the pieces are (other_motions)
 
@@ -69,7 +71,7 @@ def fit_pieces(system, params: Mapping, x: np.ndarray, dt: float, spans: Sequenc
         alone.append(None if v is None else {n: [v[n], e[n]] for n in v})
     own = {n: [p[n] for p in alone if p is not None] for n in values}
     return JointFit(values, errors, misfit, fitted, alone,
-                    {n: _pooled(own[n])[2] if len(own[n]) >= OTHERS else 1.0 for n in values})
+                    {n: _beyond_chance(own[n]) if len(own[n]) >= OTHERS else 1.0 for n in values})
 
 
 def other_motions(fit: JointFit, released: bool = False) -> list[int]:
@@ -101,6 +103,18 @@ def _pooled(pairs) -> tuple[float, float, float]:
     mean = float(np.sum(w * v) / np.sum(w))
     chi2 = float(np.sum(w * (v - mean) ** 2))
     return mean, float(1.0 / math.sqrt(np.sum(w))), max(1.0, math.sqrt(chi2 / max(len(v) - 1, 1)))
+
+
+def _beyond_chance(pairs) -> float:
+    """The Birge ratio of [value, error] pairs where their chi^2 lies beyond its CHANCE quantile for
+    their degrees of freedom, else 1: pieces whose errors are right scatter by a ratio above 1 half
+    the time, and widening the interval by it then made the joint one no narrower than the best
+    flight's (a generated cart's 6 flights: ratio 1.38, chi^2 9.5 for 5, p 0.09)."""
+    from scipy.stats import chi2
+
+    ratio = _pooled(pairs)[2]
+    dof = len(pairs) - 1
+    return ratio if dof > 0 and ratio ** 2 * dof > chi2.ppf(CHANCE, dof) else 1.0
 
 
 def disagreement(fit: JointFit, spans: Sequence[tuple[int, int]], dt: float, offset: int = 0) -> list[Finding]:

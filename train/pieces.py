@@ -28,7 +28,7 @@ from typing import Callable
 
 import numpy as np
 
-from .stretch import BREAK, MIN_SEED, REST_SECONDS, REST_SIGMAS, TOL, at_rest, find_stretch, noise_level
+from .stretch import BREAK, MIN_SEED, REST_SIGMAS, TOL, at_rest, find_stretch, noise_level, rest_window
 
 JUMP = 6.0        # an impact: the velocities either side of a frame differ by this many times their noise
 MOVING = 2.0      # ... and turn round, at least this many times that noise fast either side
@@ -65,7 +65,8 @@ JOIN = 2.0     # two neighbours are one trajectory where it misses their union b
 
 @dataclass
 class Event:
-    """What happens at a frame: hold, release, bounce, stop, moved (by something else), lost."""
+    """What happens at a frame: hold, release, bounce, stop, moved (by something else), lost (the
+    path leaves the trajectory), gone (the object leaves the view: the reader's track loses it)."""
 
     frame: int
     kind: str
@@ -119,9 +120,10 @@ class Pieces:
                          else "no stretch that one trajectory explains")
         if self.left_out:
             words.append("left out as another motion: " + ", ".join(f"{t(a)[:-2]}-{t(b)}" for a, b in self.left_out))
-        end = next((e for e in self.events if e.kind in ("stop", "lost")), None)
+        end = next((e for e in self.events if e.kind in ("stop", "lost", "gone")), None)
         if end is not None:
-            words.append(("comes to rest at " if end.kind == "stop" else "leaves the trajectory at ") + t(end.frame))
+            words.append({"stop": "comes to rest at ", "gone": "leaves the view at "}.get(end.kind, "leaves the trajectory at ")
+                         + t(end.frame))
         elif self.spans and n_frames is not None and self.spans[-1][1] >= n_frames:
             words.append("to the clip's last frame")
         return "; ".join(words)
@@ -239,11 +241,13 @@ def _at_zero(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray | None], *,
-                min_len: int = MIN_SEED, unread: np.ndarray | None = None) -> Pieces:
+                min_len: int = MIN_SEED, unread: np.ndarray | None = None, unseen: np.ndarray | None = None) -> Pieces:
     """Every stretch of the path x (T, k) that one trajectory explains (see the module docstring).
     fit(a, b): the residual of one trajectory fitted to frames [a, b), or None, as find_stretch's.
     unread: True for the frames the reader did not see the object in (read from their neighbours):
-    those next to an impact belong to it, not to a piece."""
+    those next to an impact belong to it, not to a piece. unseen: True for the frames the reader's
+    track lost the object in: a motion that ends where most of the frames after it are unseen
+    leaves the view there."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     T = len(x)
     noise_all = noise_level(x)
@@ -305,7 +309,9 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
         if last < T:
             # (a landing whose rest the clip ends too soon to show, 6 frames at 60 fps, is a stop)
             stop = rest[last:].mean() > 0.5 or (T - last <= _release_window(dt) and _flat(x[last:], noise_all))
-            events.append(Event(last, "stop" if stop else "lost"))
+            after = None if unseen is None else np.asarray(unseen, dtype=bool)[last:last + _release_window(dt)]
+            gone = not stop and after is not None and len(after) > 0 and after.mean() > 0.5
+            events.append(Event(last, "stop" if stop else "gone" if gone else "lost"))
     return Pieces(spans, events, noise)
 
 
@@ -399,7 +405,7 @@ def _still(x: np.ndarray, rest: np.ndarray, noise: float, dt: float) -> np.ndarr
     moving = np.flatnonzero(~rest)
     end = len(x) if len(moving) == 0 else int(moving[0])
     # (a rest's last window of frames may hold the first of the motion: at_rest marks whole windows)
-    held = end - (0 if len(moving) == 0 else max(3, int(round(REST_SECONDS / dt))))
+    held = end - (0 if len(moving) == 0 else rest_window(dt))
     if held < RELEASE_MIN:
         return rest
     lo, hi = np.percentile(x[:held], [2, 98], axis=0)

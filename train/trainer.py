@@ -192,6 +192,7 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
               "bends": observation.can_bend, "bend_floor": observation.bend_floor,
               "physical_units": observation.fixes_scale() or len(units) == len(system.states), "units": units,
               "length": _length_record(observation, units), "subspace": prepared.note, "rank": prepared.rank,
+              "hints": [prepared.hint] if prepared.hint else [],
               "gauge": {s: g.describe() for s, g in gauges.items()}, "own_units": sorted(own_units),
               "left_out": fit.left_out, "measurement": prepared.drawing, **extra_meta},
         checks={**numbers, "findings": [f.to_dict() for f in findings]},
@@ -433,7 +434,9 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
         else:
             unread = np.zeros(n, dtype=bool)
             unread[[i for i in mended if i < n]] = True
-            pieces = find_pieces(latent[:n], plan.dt, fit, unread=unread)
+            track = getattr(plan.observation, "track", None)
+            unseen = np.isnan(track.xy[:n, 0]) if track is not None and len(track) >= n else None
+            pieces = find_pieces(latent[:n], plan.dt, fit, unread=unread, unseen=unseen)
             if len(pieces.spans) > 1 and plan.observation.measured:
                 pieces = _same_motion(latent[:n], pieces, plan, warm)
             found = _longest(latent[:n], pieces, plan.dt) if pieces.spans else find_stretch(latent[:n], plan.dt, fit)

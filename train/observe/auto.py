@@ -24,7 +24,8 @@ from .level import Level, LevelObservation, read_level
 from .position import PositionObservation, axis_of
 from .subspace import SUBSPACE_JUMP
 from .track import Track
-from .tracking import ONE_WAY, centroids, covers_one_way, line_of_motion, noise_level, one_way, one_way_run
+from .tracking import (ONE_WAY, STRAIGHT, centroids, covers_one_way, line_of_motion, noise_level, one_way,
+                       one_way_run, straightness)
 
 STRONG = 0.25  # frames whose largest change is at least this share of the clip's largest
 LOOK_FRAMES = 256
@@ -133,6 +134,12 @@ def _resolved(spec, system, frames, light, encoder, source, track) -> Observatio
                f"the tracked object moves {seen.followed:.1f}x its own size")
         model.reason = f"position (auto: {how}, and the state's name says the image axis it is measured along ({named}))"
         return model
+    if seen is not None and seen.travels and seen.straight and not seen.swings and _lengths(system):
+        model = PositionObservation()
+        model.reason = (f"position (auto: the tracked object moves {seen.followed:.0f}x its size back and forth along "
+                        f"a straight line, its scatter across it {100 * seen.across:.2g}% of its travel, and the equation "
+                        f"leaves {system.states[0]}'s scale and zero free: its place along that line is the state)")
+        return model
     if not power_symmetric(system):
         model = ObservationModel()
         model.reason = "any (auto: the paper's free encoder; the equation's constants do not follow a bend of the latent)"
@@ -147,6 +154,16 @@ def _resolved(spec, system, frames, light, encoder, source, track) -> Observatio
         model.reason = ("any (auto: the change moves back and forth; the linear encoder keeps the rate)"
                         if seen is not None else "any (auto: no frames to look at)")
     return model
+
+
+def _lengths(system) -> bool:
+    """A single state, named along no image axis, whose scale and zero the equation leaves free (a
+    length along a track: s'' = -a; not an angle under sin, nor a level under sqrt)."""
+    if len(system.states) != 1 or axis_of(system.states[0]):
+        return False
+    from fitode.eqparse.gauge import gauge_plan  # sympy: only when a fit is set up
+    gauge = gauge_plan(system)[system.states[0]]
+    return not (gauge.scale_learned or gauge.offset_learned or gauge.positive)
 
 
 def _level(system, frames: torch.Tensor | None) -> Level | None:
@@ -183,6 +200,8 @@ class Look:
     # a small swing's string sweeps a region larger than the bob's travel in the shrunk frames (a
     # generated 8-degree swing: 14 pixels of travel against 24), while its bob travels 6 times its size
     followed: float = 0.0
+    # the path's scatter across its line of motion over its travel along it (inf: not measured)
+    across: float = float("inf")
 
     @property
     def runs_one_way(self) -> bool:
@@ -208,6 +227,11 @@ class Look:
         motion (a cart's last flight alone, 27 pixels up and back) moves less than the change's
         region in the shrunk frames (the cart and its ghost in the median frame)."""
         return self.moves or (self.followed > 1 and self.gap < SUBSPACE_JUMP)
+
+    @property
+    def straight(self) -> bool:
+        """The path runs along a straight line: its scatter across it is under STRAIGHT of its travel."""
+        return self.across < STRAIGHT
 
     @property
     def swings(self) -> bool:
@@ -249,9 +273,11 @@ def look(frames: torch.Tensor, track: Track | None = None) -> Look:
         _, path = line_of_motion(full)
         # a track that jumps to something else in some frames (a hand, the floor) looks back and
         # forth; the shrunk frames' centroids of the same clip may still see it run one way
+        travel = float(path.max() - path.min())
         seen = Look(seen.travel, seen.size, max(seen.one_way, one_way(path[::step])), gap,
-                    run=one_way_run(path.numpy()), followed=float(path.max() - path.min()) / max(track.area, 1.0) ** 0.5,
-                    bent=track.filled())
+                    run=one_way_run(path.numpy()), followed=travel / max(track.area, 1.0) ** 0.5,
+                    bent=track.filled(), across=straightness(full))
     elif seen.moves:
         seen.bent = xy.double().cpu().numpy()
     return seen
+

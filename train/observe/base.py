@@ -81,6 +81,9 @@ class Prepared:
     # the column as given (its spread): a measured path is fitted in these units; None: no unit
     units: tuple[str, ...] | None = None
     unit_scale: tuple[float, ...] | None = None
+    # advice on what the user said that looks wrong, with its fix (no judgement of the estimate):
+    # a warning line under the table
+    hint: str | None = None
 
     def in_order(self, states: Sequence[str]) -> "Prepared":
         """The measured columns in the equation's state order, checked: a model may measure its

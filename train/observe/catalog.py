@@ -61,8 +61,10 @@ def auto_rule(power_symmetric: bool) -> list[str]:
     latent would change."""
     level = ("auto -> level for a single first-order state named along the vertical (h, y, z) where the frames "
              "show a horizontal edge that moves one way: " + MODELS["level"].line)
-    moving = ("auto -> position where the change moves one way (a fall, a slide, a level), or where it moves and "
-              "every state's name says its image axis (x across; y, h, z up): " + MODELS["position"].line)
+    moving = ("auto -> position where the change moves one way (a fall, a slide, a level), where it moves and "
+              "every state's name says its image axis (x across; y, h, z up), or where a single state whose scale "
+              "and zero the equation leaves free (s'' = -a) moves back and forth along a straight line (read along "
+              "it, positive the way it first moves): " + MODELS["position"].line)
     if not power_symmetric:
         return [level, moving, "elsewhere any, as no constant follows a bend of the latent: " + MODELS["any"].line]
     return [level, moving, "brightness where the change stays in place (it brightens or dims): " + MODELS["brightness"].line,

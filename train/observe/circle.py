@@ -147,7 +147,8 @@ def radius_error(xy: np.ndarray, centre: np.ndarray, radius: float, scale: float
             d = np.hypot(xy[:, 0] - centre[0], xy[:, 1] - centre[1]) - radius
             order = np.argsort(np.arctan2(xy[:, 1] - centre[1], xy[:, 0] - centre[0]))
             cov = np.linalg.inv(jac.T @ jac) * scale ** 2 * correlation_time(d[order])
-            error = float(np.sqrt(cov[2, 2])) / max(radius, 1e-12)
+            # a near-singular inverse (a straight or noise-free path) can give no positive variance
+            error = float(np.sqrt(cov[2, 2])) / max(radius, 1e-12) if cov[2, 2] > 0 else np.inf
         except np.linalg.LinAlgError:
             cov = None
     n, g = len(xy), JACKKNIFE_BLOCKS
@@ -158,7 +159,7 @@ def radius_error(xy: np.ndarray, centre: np.ndarray, radius: float, scale: float
     if left and all(f is not None for f in left):
         radii = np.array([f[1] for f in left])
         jack = float(np.sqrt((g - 1) / g * np.sum((radii - radii.mean()) ** 2))) / max(radius, 1e-12)
-        if cov is not None and jack > error:
+        if cov is not None and jack > error > 0:
             cov = cov * (jack / error) ** 2
         error = max(error, jack) if np.isfinite(error) else jack
     return error, None if cov is None else (float(cov[0, 0]), float(cov[0, 1]), float(cov[1, 1]))

@@ -55,7 +55,7 @@ class PerStateObservation(MeasuredObservation):
 
     def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
         columns, notes, cautions, components, drawings, mended = [], [], [], None, [], set()
-        units, unit_scale = [], []
+        units, unit_scale, hints = [], [], []
         for state, model in self.parts.items():
             one = model.prepare(frames, architecture, fit_frames)
             if tuple(one.inputs.shape[1:]) != (1, 1, 1):
@@ -65,6 +65,8 @@ class PerStateObservation(MeasuredObservation):
             notes.append(f"{state}: {one.note}")
             if one.caution:
                 cautions.append(f"{state}: {one.caution}")
+            if one.hint:
+                hints.append(one.hint)
             mended.update(one.mended)
             components = one.components if components is None else components
             drawings.append((state, one.drawing))
@@ -74,7 +76,8 @@ class PerStateObservation(MeasuredObservation):
         inputs = torch.stack(columns, dim=1).reshape(len(columns[0]), len(columns), 1, 1)
         return Prepared(inputs, components, len(columns), "; ".join(notes), "; ".join(cautions) or None,
                         tuple(self.parts), _merged(self.name, drawings), mended=tuple(sorted(mended)),
-                        units=tuple(units) if given else None, unit_scale=tuple(unit_scale) if given else None)
+                        units=tuple(units) if given else None, unit_scale=tuple(unit_scale) if given else None,
+                        hint="; ".join(hints) or None)
 
     def describe(self) -> str:
         return "; ".join(f"{s}: {m.describe()}" for s, m in self.parts.items())

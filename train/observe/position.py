@@ -1,6 +1,7 @@
 """The position observation: the latent is affine in where something is along its line of motion."""
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -10,7 +11,7 @@ from fitode.errors import ConfigError
 
 from .base import MeasuredObservation, ObservationModel, Prepared
 from .drawing import points, record
-from .tracking import centroids, line_of_motion, mend
+from .tracking import STRAIGHT, centroids, line_of_motion, mend, straightness
 
 
 AXES = {"x": "x", "y": "y", "h": "y", "z": "y"}  # a state named so reads that image axis (y, h, z: up)
@@ -22,7 +23,18 @@ BARELY = 0.05
 # a single unnamed state's reading across its line of motion is fitted too where it carries at
 # least this share of the motion
 AXIS_SHARE = 0.3
+TILT = 0.002  # a straight path this much longer than its reading along the named axis is said (tilt_hint)
+FIRST_MOVE = 0.25  # the share of a path's range it must go from its start to say which way it moves
 TRACK_AGREE = 0.9  # the least correlation of the track's path with the shrunk frames' centroids' to read it
+
+
+def first_move(path: torch.Tensor) -> float:
+    """+1 or -1: the way a path (T,) first moves, by FIRST_MOVE of its range from where it starts
+    (0 where it never does): the distance an unnamed state measures along a line runs that way,
+    as a slide's, a fall's or a release's distance travelled does."""
+    away = path - path[0]
+    far = torch.nonzero(away.abs() >= FIRST_MOVE * float(path.max() - path.min())).flatten()
+    return float(torch.sign(away[far[0]])) if len(far) and float(path.max() - path.min()) > 0 else 0.0
 
 
 def axis_of(state: str) -> str | None:
@@ -81,6 +93,23 @@ def _weak_axes(xy: torch.Tensor, axes: list[str]) -> list[int]:
     spread = float(along.std())
     columns = {"x": xy[:, 0], "y": xy[:, 1]}
     return [i for i, axis in enumerate(axes) if float(columns[axis].std()) < BARELY * spread]
+
+
+def _tilt_hint(xy: torch.Tensor, states: tuple[str, ...], axes: list[str]) -> str | None:
+    """The advice for a single state named along an image axis whose path runs along a straight
+    line tilted from that axis so far that the path along the line is TILT longer (a cart on an
+    incline named x): the state is read along its axis, as named, and what that leaves out is said."""
+    if len(states) != 1 or straightness(xy) >= STRAIGHT:
+        return None
+    direction, _ = line_of_motion(xy.double())
+    along = abs(float(direction[0] if axes[0] == "x" else direction[1]))
+    if along <= 0 or 1.0 / along - 1.0 < TILT:
+        return None
+    degrees = math.degrees(math.acos(min(along, 1.0)))
+    return (f"{states[0]} is read {'across' if axes[0] == 'x' else 'up'} the image, as its name says; the object "
+            f"moves along a straight line {degrees:.1f} degrees from that axis, where its path is "
+            f"{100 * (1.0 / along - 1.0):.2g}% longer: where the equation is of the distance along that line (a slide, "
+            "a cart on an incline), name the state s to measure it so (positive the way it first moves)")
 
 
 # what a position reads: the change's centroid, the object followed by its appearance where the
@@ -163,6 +192,8 @@ class PositionObservation(MeasuredObservation):
                                     f"{100 * BARELY:.0f}% of the motion runs along the image axis the name says; "
                                     "name the state s to read its line of motion instead")
                 prepared.note += "; " + prepared.caution
+            else:
+                prepared.hint = _tilt_hint(xy[:n_fit], states, axes)
         else:
             prepared = self._line(xy, n_fit, out.components, pixels, where, frames.dtype, what)
         if where:  # the reader's track is in the source's pixels, with a frame it did not see left out
@@ -177,9 +208,12 @@ class PositionObservation(MeasuredObservation):
         # the line of motion: a linear encoder of two collinear coordinates can cancel its own signal
         direction, raw = line_of_motion(xy, n_fit)
         path, mended = mend(raw, n_fit)
+        if first_move(path[:n_fit]) < 0:  # the line's sign is the SVD's whim; a name gives none either
+            direction, raw, path = -direction, -raw, -path
         z = path / path[:n_fit].std().clamp_min(1e-6)
-        angle = float(torch.rad2deg(torch.atan2(direction[1], direction[0]))) % 180
-        note = (f"position: {where}{what.format(pixels=pixels)}, along its line of motion ({angle:.0f} degrees from the image's x axis), read linearly")
+        angle = float(torch.rad2deg(torch.atan2(-direction[1], direction[0]))) % 360  # image y points down
+        note = (f"position: {where}{what.format(pixels=pixels)}, along its line of motion, positive the way it "
+                f"first moves ({angle:.0f} degrees from the image's x axis, counter-clockwise), read linearly")
         note = _mended(note, mended)
         frames = tuple(int(i) for i in torch.nonzero(path != raw).flatten())
         drawing = record(self.name, reading="line", track=points(xy), mended=list(frames) if mended else None,

@@ -163,6 +163,12 @@ def one_way_run(path: np.ndarray) -> tuple[float, float]:
     return first, other
 
 
+# a path runs along a straight line where its scatter across its line of motion is under STRAIGHT
+# of its travel along it (a generated cart that bounces on its track: 0.0004; a spring that sways
+# while it bounces, or a throw's parabola, is far wider)
+STRAIGHT = 0.03
+
+
 def line_of_motion(xy: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """The direction (2,) along which the centroids of the first n_fit frames spread most, and
     every centroid's signed distance along it from their mean, (T,)."""
@@ -170,6 +176,16 @@ def line_of_motion(xy: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Te
     centred = xy - xy[:n_fit].mean(dim=0)
     direction = torch.linalg.svd(centred[:n_fit], full_matrices=False).Vh[0]
     return direction, centred @ direction
+
+
+def straightness(xy: torch.Tensor) -> float:
+    """A path's (T, 2) scatter across its line of motion (a standard deviation) over its travel
+    along it: under STRAIGHT, it runs along a straight line (inf for a path that does not move)."""
+    centred = xy.double() - xy.double().mean(dim=0)
+    direction = torch.linalg.svd(centred, full_matrices=False).Vh
+    along, across = centred @ direction[0], (centred @ direction[1] if len(direction) > 1 else torch.zeros(1))
+    travel = float(along.max() - along.min())
+    return float(across.std()) / travel if travel > 0 else float("inf")
 
 
 def noise_level(diff: torch.Tensor) -> torch.Tensor:
