@@ -19,15 +19,3 @@ def pytest_xdist_auto_num_workers(config) -> int:
     except AttributeError:  # not on Linux
         cores = os.cpu_count() or 1
     return max(1, min(cores, MAX_WORKERS))
-
-
-def pytest_configure(config) -> None:
-    # one test at a time to whichever worker is free (xdist's --dist load otherwise hands each worker
-    # a contiguous chunk up front): with the slow tests first (below), the longest start first and
-    # the many short ones fill in behind them, so the two workers end close together
-    if getattr(config.option, "maxschedchunk", 0) is None:
-        config.option.maxschedchunk = 1
-
-
-def pytest_collection_modifyitems(config, items) -> None:
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)  # stable: file order otherwise
