@@ -233,7 +233,8 @@ def distill(encoder, frames: torch.Tensor, targets: Mapping[int, np.ndarray], co
     opt = BatchedAdam([{"params": list(encoder.parameters()), "lr": config.lr * 10, "name": "encoder"}], n_runs)
     # only the taught restarts' encoders run: the others' would be computed and thrown away
     taught = torch.tensor(sorted(targets), device=frames.device) if _runs_some(encoder) else None
-    for _ in range(DISTILL_STEPS):
+    # as the search that found the latent: no more steps than the fit itself may take
+    for _ in range(min(DISTILL_STEPS, config.max_steps)):
         interrupts.check()
         if taught is None:
             loss = _distill_loss(encoder(frames[:n])[..., :k], target[:, :n], weight)

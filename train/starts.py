@@ -113,8 +113,10 @@ def _search(latents: list[np.ndarray], starts: list[DataStart], n: int, dt: floa
     z = torch.as_tensor(np.stack([mean + std * (c - c.mean()) / c.std() for c in latents], axis=1),
                         dtype=torch.float32).reshape(-1, len(latents), 1, 1)
     k = len(candidates)
-    cfg = replace(config, restarts=k * len(latents), max_steps=STEPS, min_steps=min(config.min_steps, STEPS // 3),
-                  horizon_warmup=min(config.horizon_warmup, STEPS // 3), batch_windows=SEARCH_WINDOWS)
+    # never more steps than the fit it seeds may take: a fit held to a few steps is asked to be quick
+    steps = min(STEPS, config.max_steps)
+    cfg = replace(config, restarts=k * len(latents), max_steps=steps, min_steps=min(config.min_steps, steps // 3),
+                  horizon_warmup=min(config.horizon_warmup, steps // 3), batch_windows=SEARCH_WINDOWS)
     try:
         trained = train_restarts(z, dt, system, params, cfg, list(candidates) * len(latents),
                                  seeds=list(range(k)) * len(latents),

@@ -425,11 +425,11 @@ def _minimise(loss, named: list, scales: list, iterations: int) -> tuple[bool, i
     with torch.no_grad():
         first = float(loss(values()))
     norm = first if math.isfinite(first) and first > 0 else 1.0
-    opt = torch.optim.LBFGS(steps, lr=1.0, max_iter=iterations, tolerance_grad=1e-12, tolerance_change=1e-15,
-                            line_search_fn="strong_wolfe")
+    opt = _lbfgs(steps, max_iter=iterations, tolerance_grad=1e-12, tolerance_change=1e-15)
 
     def closure():
-        opt.zero_grad(set_to_none=True)
+        for u in steps:
+            u.grad = None
         value = loss(values()) / norm
         value.backward()
         return value
@@ -439,6 +439,28 @@ def _minimise(loss, named: list, scales: list, iterations: int) -> tuple[bool, i
             p.copy_(v)
     done = int(opt.state[opt._params[0]].get("n_iter", iterations))
     return done < iterations, done
+
+
+def _lbfgs(params: list, max_iter: int, tolerance_grad: float, tolerance_change: float):
+    """torch's L-BFGS (strong-Wolfe line search, lr 1), its steps exactly, without the bookkeeping
+    of torch.optim.Optimizer: building any Optimizer imports torch._dynamo (its add_param_group and
+    zero_grad are wrapped to keep the compiler out), which took as long as importing torch itself
+    (2.5-3 s, loaded machine) in every process whose fit reaches this solver (the checks of a
+    learned latent, the refit of a short calibrated path), for nothing it uses. LBFGS.step reads
+    only the fields set here (and, where another LBFGS in the process had its step wrapped for the
+    profiler, the two hook tables)."""
+    from collections import OrderedDict, defaultdict
+
+    from torch.optim import LBFGS
+
+    opt = LBFGS.__new__(LBFGS)
+    opt.defaults = {"lr": 1.0, "max_iter": max_iter, "max_eval": max_iter * 5 // 4, "tolerance_grad": tolerance_grad,
+                    "tolerance_change": tolerance_change, "history_size": 100, "line_search_fn": "strong_wolfe"}
+    opt.param_groups = [{"params": list(params), **opt.defaults}]
+    opt.state = defaultdict(dict)
+    opt._params, opt._numel_cache = opt.param_groups[0]["params"], None
+    opt._optimizer_step_pre_hooks, opt._optimizer_step_post_hooks = OrderedDict(), OrderedDict()
+    return opt
 
 
 def _levenberg(problem: _Problem, named: list, scales: list, iterations: int) -> tuple[bool, int, int]:

@@ -11,8 +11,7 @@ import os
 # headless workers draw into files; the forkserver must not pick an interactive backend
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-# torch._dynamo is imported by the first optimiser torch builds: seconds, on every fresh worker
-for _name in ("numpy", "torch", "torch.optim", "torch._dynamo", "cv2", "sympy", "lark", "matplotlib",
+for _name in ("numpy", "torch", "torch.optim", "cv2", "sympy", "lark", "matplotlib",
               "matplotlib.figure", "matplotlib.backends.backend_agg", "fitode.plots", "fitode.pipeline", "fitode.api",
               "fitode.report", "fitode.video", "fitode.eqfile", "fitode.codegen", "fitode.train.trainer",
               "fitode.batch.job"):

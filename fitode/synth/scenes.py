@@ -12,7 +12,7 @@ The dynamics are the physics, not a fit target's approximation:
   project's RK4 at 20 sub-steps per frame; L = 0.45, 0.9, 1.5 m; zeta = 0.05 /s.
 - torricelli: h' = -k sqrt(h) in metres and seconds, exact: sqrt(h) = sqrt(h0) - k t / 2;
   a floating ball marks the level; k = 0.0095, 0.0128, 0.0162 m^0.5/s.
-- sliding_block: x'' = g (sin(alpha) - mu cos(alpha)) = a, exact; alpha = 20, 25, 30 deg,
+- sliding_block: s'' = g (sin(alpha) - mu cos(alpha)) = a (s along the incline), exact; alpha = 20, 25, 30 deg,
   mu = 0.21; the block starts near the top, already released t0 seconds before frame 0.
   The truth is alpha (radians) and mu, the shipped file's constants; only their combination
   a (meta["physical"]["a"]) is measurable.
@@ -418,12 +418,12 @@ def _sliding_block(alpha_deg, rng, duration, dt, h, w, p) -> _Scene:
             return body * (0.85 + 0.25 * np.clip(up, -1, 1))[..., None]
         c.paint(R.box(centre[0], centre[1], hw, hh, alpha, radius=1.0), shade, bbox)
 
-    return _Scene(background=cv.image, draw=draw, latent=s[:, None], latent_names=("x",),
+    return _Scene(background=cv.image, draw=draw, latent=s[:, None], latent_names=("s",),
                   truth={"alpha": float(alpha), "mu": mu},
                   physical={"a": float(a), "alpha_deg": float(alpha_deg), "mu": mu, "g": G, "t0": t0,
                             "rest_before_frames": before, "rest_after_frames": after,
                             "s0": s0, "ramp_length": ramp, "pixels_per_metre": float(ppm), "ruler": ruler},
-                  state=np.stack([s, v], axis=1), state_names=("x", "x'"))
+                  state=np.stack([s, v], axis=1), state_names=("s", "s'"))
 
 
 # --- a fall with drag, side-on ---------------------------------------------------------------
@@ -957,7 +957,7 @@ SCENES: dict[str, SceneInfo] = {i.name: i for i in (
               ("h0",), "h' = -k*sqrt(h)", "torricelli", _torricelli),
     SceneInfo("sliding_block", "alpha", (20.0, 25.0, 30.0), "deg",
               "a block sliding down a ramp inclined at alpha (mu = 0.21)", None,
-              ("mu", "t0", "rest_before", "rest_after"), "x'' = g*(sin(alpha) - mu*cos(alpha))", "sliding_block", _sliding_block),
+              ("mu", "t0", "rest_before", "rest_after"), "s'' = g*(sin(alpha) - mu*cos(alpha))", "sliding_block", _sliding_block),
     SceneInfo("led", "gamma", (2.3, 0.92, 0.46), "1/s",
               "an LED whose brightness decays as exp(-gamma t)", 3.0,
               ("I0",), "I' = -gamma*(I - c)", "led_decay", _led),
