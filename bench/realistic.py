@@ -181,11 +181,12 @@ def fit_video(task: dict[str, Any]) -> dict[str, Any]:
         out["scale"] = scale
         points, stick = None, None
         ruler = (video.meta.get("physical") or {}).get("ruler")
-        if calibrate and task.get("calibrate", True) and task.get("ruler") and ruler:
-            stick = clicked_ruler(ruler, np.random.default_rng([seed, 41]))
-        elif calibrate and task.get("calibrate", True):
-            clip = read_video(path)  # the same defaults as run_video, to pick frames it keeps
-            points = calibration_points(clip, video, ode.states[0])
+        if calibrate and task.get("calibrate", True):
+            if task.get("ruler") and ruler:
+                stick = clicked_ruler(ruler, np.random.default_rng([seed, 41]))
+            else:
+                clip = read_video(path)  # the same defaults as run_video, to pick frames it keeps
+                points = calibration_points(clip, video, ode.states[0])
         out["calibration"] = points or (stick and f"--scale {stick}")
         t1 = time.perf_counter()
         try:

@@ -181,9 +181,9 @@ def line_of_motion(xy: torch.Tensor, n_fit: int | None = None) -> tuple[torch.Te
 def straightness(xy: torch.Tensor) -> float:
     """A path's (T, 2) scatter across its line of motion (a standard deviation) over its travel
     along it: under STRAIGHT, it runs along a straight line (inf for a path that does not move)."""
-    centred = xy.double() - xy.double().mean(dim=0)
-    direction = torch.linalg.svd(centred, full_matrices=False).Vh
-    along, across = centred @ direction[0], (centred @ direction[1] if len(direction) > 1 else torch.zeros(1))
+    xy = xy.double()
+    direction, along = line_of_motion(xy)
+    across = (xy - xy.mean(dim=0)) @ torch.stack([-direction[1], direction[0]])
     travel = float(along.max() - along.min())
     return float(across.std()) / travel if travel > 0 else float("inf")
 
