@@ -503,6 +503,8 @@ EVENT_COLOURS = {"hold": "tab:purple", "moved": "tab:purple", "release": "tab:gr
 
 def _mark_pieces(ax, t: np.ndarray, pieces: Mapping[str, Any] | None) -> None:
     """Each piece shaded (the constants are fitted to all of them together) and each event a line."""
+    from fitode.train.pieces import ENDS
+
     if not pieces or not pieces.get("pieces"):
         return
     n = len(t)
@@ -518,7 +520,7 @@ def _mark_pieces(ax, t: np.ndarray, pieces: Mapping[str, Any] | None) -> None:
         if e["kind"] == "release" or not 0 <= f < n:
             continue
         label = {"hold": "held until", "moved": "moved by something else until", "bounce": "a bounce",
-                 "stop": "comes to rest", "lost": "leaves the trajectory", "gone": "leaves the view"}.get(e["kind"], e["kind"])
+                 **ENDS}.get(e["kind"], e["kind"])
         ax.axvline(t[f], color=EVENT_COLOURS.get(e["kind"], "0.3"), lw=1.0, ls="--",
                    label=label if e["kind"] not in seen else None)
         seen.add(e["kind"])

@@ -63,6 +63,10 @@ JOIN = 2.0     # two neighbours are one trajectory where it misses their union b
 #                their own misfits (or the noise)
 
 
+# how each way a motion ends is said, in the summary line and on track.png
+ENDS = {"stop": "comes to rest", "lost": "leaves the trajectory", "gone": "leaves the view"}
+
+
 @dataclass
 class Event:
     """What happens at a frame: hold, release, bounce, stop, moved (by something else), lost (the
@@ -120,10 +124,9 @@ class Pieces:
                          else "no stretch that one trajectory explains")
         if self.left_out:
             words.append("left out as another motion: " + ", ".join(f"{t(a)[:-2]}-{t(b)}" for a, b in self.left_out))
-        end = next((e for e in self.events if e.kind in ("stop", "lost", "gone")), None)
+        end = next((e for e in self.events if e.kind in ENDS), None)
         if end is not None:
-            words.append({"stop": "comes to rest at ", "gone": "leaves the view at "}.get(end.kind, "leaves the trajectory at ")
-                         + t(end.frame))
+            words.append(f"{ENDS[end.kind]} at {t(end.frame)}")
         elif self.spans and n_frames is not None and self.spans[-1][1] >= n_frames:
             words.append("to the clip's last frame")
         return "; ".join(words)
