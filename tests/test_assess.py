@@ -140,6 +140,23 @@ def test_a_trusted_number_keeps_its_promise_of_five_percent_at_99():
     assert v.verdict == "ambiguous" and "pins it only to +-4%" in v.reason and "5%" in v.reason
 
 
+def test_a_wide_interval_names_the_share_that_carries_it():
+    """A short ruler, not the clip, limits a bouncing ball's g (+-4.3% at 95%, three quarters of the
+    variance the scale's): the reason says so and how to narrow it; where no share carries most of
+    the width, the reason names none."""
+    ruled = _result([_run(0, 4.0), _run(1, 4.0)])
+    ruled.parameters["k"].interval = [4.0 * 0.957, 4.0 * 1.043]
+    ruled.checks["interval"] = {"shares": {"k": {"residuals": 0.04, "calibration": 0.075, "timing": 0.0}}}
+    v = _judged(ruled).verdicts["k"]
+    assert v.verdict == "ambiguous" and "pins it only to +-4.3%" in v.reason
+    assert "most of it (+-3.7%) is the scale given: a longer ruler in view" in v.reason
+    even = _result([_run(0, 4.0), _run(1, 4.0)])
+    even.parameters["k"].interval = [4.0 * 0.957, 4.0 * 1.043]
+    even.checks["interval"] = {"shares": {"k": {"residuals": 0.06, "calibration": 0.06}}}
+    v = _judged(even).verdicts["k"]
+    assert v.verdict == "ambiguous" and "pins it only" in v.reason and "most of it" not in v.reason
+
+
 def test_a_calibrated_constants_rivals_are_judged_in_the_units_the_restarts_ran_in():
     """A left-out restart at 4.1 beside a best restart at 4.0 agrees (2.5%), also where the
     calibration put the estimate at 0.4 m: it was once compared with the calibrated 0.4 (a rival

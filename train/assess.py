@@ -94,7 +94,7 @@ def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iter
         mine = _identifiability(name, analysis, calibrated, physical_units, result)
         mine += _agreement(name, value, sources)
         mine += _rivals(name, result)
-        mine += _precision(name, result.parameters[name])
+        mine += _precision(name, result.parameters[name], _shares(result, name))
         if not interrupted:
             mine += _settling(name, sources, int(result.settings.get("max_steps", 0)))
         everything += mine
@@ -153,16 +153,60 @@ def _held_out_missed(boot, parameters) -> tuple[str, tuple[str, ...] | None, tup
     return said, moved, tuple(n for n in without if n not in moved)
 
 
-def _precision(name: str, est) -> list[Finding]:
-    """The 99% interval reaches further than PROMISE from the value (see the module docstring)."""
+def _precision(name: str, est, shares: Mapping[str, float] | None = None) -> list[Finding]:
+    """The 99% interval reaches further than PROMISE from the value (see the module docstring).
+    shares: the interval's own shares (as normal standard deviations, fitode.train.interval.combine):
+    where one of them carries most of its width, the reason names it and what narrows it, since a
+    short ruler, not the clip, is then what a user can mend."""
     iv = getattr(est, "interval", None)
     if not iv or not all(math.isfinite(v) for v in iv):
         return []
     reach = max(est.value - iv[0], iv[1] - est.value) * Z99_OVER_Z95 / max(abs(est.value), 1e-300)
     if reach <= PROMISE:
         return []
+    cause = _dominant(shares or {})
+    said = ""
+    if cause in SHARE_CAUSES:
+        width = _widths(shares)[cause] / max(abs(est.value), 1e-300)
+        said = f"; most of it (+-{_pct(width)}) is {SHARE_CAUSES[cause]}"
     return [Finding("ambiguous", f"the clip pins it only to +-{_pct(reach / Z99_OVER_Z95)} (95%), "
-                    f"+-{_pct(reach)} at 99%: more than the {PROMISE:.0%} a trusted number promises", (name,))]
+                    f"+-{_pct(reach)} at 99%: more than the {PROMISE:.0%} a trusted number promises" + said, (name,))]
+
+
+# what carries most of an interval (interval.combine's shares), and what narrows it
+SHARE_CAUSES = {
+    "calibration": "the scale given: a longer ruler in view, or its ends' precision written as "
+                   "--scale X1,Y1,X2,Y2±P=D, narrows it (or --calibrate's values, where they set the scale)",
+    "residuals": "the measured path's scatter about the equation's trajectory: a longer clip, or a higher "
+                 "frame rate, narrows it",
+    "timing": "the frame rate's uncertainty: --fps with the camera's true rate narrows it",
+}
+DOMINANT = 0.5  # the share of the interval's variance one cause must carry to be named
+
+
+def _widths(shares: Mapping[str, float]) -> dict[str, float]:
+    """Each share's reach into the 95% half width: gap and rivals as they are, the others as
+    standard deviations (interval.combine)."""
+    from statistics import NormalDist
+    z = NormalDist().inv_cdf(0.975)
+    return {k: abs(float(v)) * (1.0 if k in ("gap", "rivals") else z) for k, v in shares.items()
+            if isinstance(v, (int, float)) and math.isfinite(v)}
+
+
+def _dominant(shares: Mapping[str, float]) -> str | None:
+    """The share that carries more than DOMINANT of the interval's variance, if one does."""
+    widths = _widths(shares)
+    total = sum(w * w for w in widths.values())
+    if total <= 0:
+        return None
+    name, width = max(widths.items(), key=lambda kv: kv[1])
+    return name if width * width > DOMINANT * total else None
+
+
+def _shares(result, name: str) -> Mapping[str, float]:
+    """The shares of name's interval as the interval stage recorded them (checks["interval"])."""
+    shares = ((result.checks or {}).get("interval") or {}).get("shares") or {}
+    return shares.get(name) or {}
 
 
 def _pct(x: float) -> str:
