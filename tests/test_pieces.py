@@ -316,3 +316,24 @@ def test_a_short_hold_filmed_fast_is_a_rest():
     rest = at_rest(y[:, None], dt, 0.05)
     assert rest[:20].all() and not rest[26:].any()
     assert rest_window(dt) == REST_FRAMES and rest_window(1 / 30) == 6
+
+
+@pytest.mark.slow
+def test_an_unnamed_line_is_read_the_way_the_equation_writes_its_constant(tmp_path):
+    """A cart released at the top of its incline first moves down it: `s'' = a` reads s down the
+    incline (the way it first moves), `s'' = -a` up it (the other way, so that a comes out positive
+    as written, not -a), each with the same magnitude and the position line saying which way."""
+    import fitode
+    from fitode import synth
+
+    v = synth.scene("bumper_cart", 0.6, bounces=2, size=(135, 240), seed=3)
+    path = synth.write_video(v, tmp_path / "cart.mp4")
+    ruler = v.meta["physical"]["ruler"]["text"]
+    down = fitode.fit(str(path), eq="s'' = a", scale=ruler)
+    up = fitode.fit(str(path), eq="s'' = -a", scale=ruler)
+    assert down.parameters["a"].value == pytest.approx(0.6, rel=0.03)
+    assert up.parameters["a"].value == pytest.approx(down.parameters["a"].value, rel=1e-3)
+    d_down, d_up = (r.meta["measurement"]["line"]["direction"] for r in (down, up))
+    assert np.dot(d_down, d_up) == pytest.approx(-1.0, abs=1e-6)
+    assert "against the way it first moves" in up.meta["subspace"]
+    assert "positive the way it first moves" in down.meta["subspace"]

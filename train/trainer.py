@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 from dataclasses import dataclass, replace
 from typing import Callable, Mapping, Sequence
 
@@ -81,6 +82,9 @@ def restart_inits(system: OdeSystem, params: Mapping[str, ParamSpec], n: int, se
     return inits
 
 
+TURN_MISS = 1.1  # a line read the other way is taken where it fits about as well (_turn_pays)
+
+
 def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None = None,
                progress: bool = False, stretch: tuple[int, int] | None = None, measurement=None) -> FitResult:
     """Every restart of the plan on raw float frames (T, C, H, W), trained on the first
@@ -109,6 +113,12 @@ def fit_frames(frames: torch.Tensor, plan: FitPlan, *, callback: Callback | None
             measured = prepared
             searched: list = []  # the stretch search's answer, which the pass at the settled step size reuses
             fit, perspective, straight, prepared, extra_meta = _measured_fit(measured, plan, gauges, stretch, searched)
+            turned = _turned_line(measured, plan, fit)
+            if turned is not None:
+                other = _measured_fit(turned, plan, gauges, stretch, searched)
+                if _turn_pays(fit, other[0], plan):
+                    measured = turned
+                    fit, perspective, straight, prepared, extra_meta = other
             first, last = extra_meta["stretch"]["start_frame"], extra_meta["stretch"]["end_frame"]
             with _threads(config.threads):
                 steps = settle_substeps(system, params, fit.latents[fit.best, first:last], dt, straight,
@@ -252,6 +262,40 @@ def _other_reading(prepared, plan: FitPlan, gauges, fit, stretch: tuple[int, int
 def _measured_columns(prepared) -> bool:
     """Does the observation give the state's measured columns (T, k, 1, 1), one per named state?"""
     return prepared.states is not None and prepared.inputs.dim() == 4 and tuple(prepared.inputs.shape[2:]) == (1, 1)
+
+
+def _negatives(fit, plan: FitPlan) -> int:
+    """How many of the best run's fitted constants are negative."""
+    final = fit.records[fit.best].final
+    return sum(1 for n in plan.system.learnable if n in final and final[n] < 0)
+
+
+def _turned_line(prepared, plan: FitPlan, fit):
+    """The prepared path read the other way along its line, where which way is positive is a
+    convention: one state with no axis in its name, read along the object's line of motion
+    (observe.position: positive the way the object first moves), whose best fit has a negative
+    constant. A cart released at the top of its incline first moves down it, while `s'' = -a`
+    measures s up it: read the first way, a comes out negative. None where that does not apply."""
+    drawing = prepared.drawing or {}
+    # a single reader's drawing says its reading; the per-state reader's, each state's (observe.per_state)
+    line_read = drawing.get("reading") == "line" or list((drawing.get("states") or {}).values()) == ["line"]
+    if prepared.states is None or len(prepared.states) != 1 or not line_read or not _negatives(fit, plan):
+        return None
+    line = drawing.get("line") or {}
+    turned_line = {**line, "direction": [-v for v in line.get("direction", [])]} if line else line
+    note = re.sub(r"positive the way it first moves \((\d+) degrees",
+                  lambda m: ("positive against the way it first moves, the way the equation's constants come out "
+                             f"positive as it writes them ({(int(m.group(1)) + 180) % 360} degrees"), prepared.note)
+    return replace(prepared, inputs=-prepared.inputs, note=note, drawing={**drawing, "line": turned_line})
+
+
+def _turn_pays(fit, turned, plan: FitPlan) -> bool:
+    """Take the path read the other way where its constants have fewer negative signs and its fit
+    misses the path no more than TURN_MISS times as much (the same where the equation is odd in
+    the state: a sign of a constant is all that changes)."""
+    here, there = fit.records[fit.best].loss, turned.records[turned.best].loss
+    return _negatives(turned, plan) < _negatives(fit, plan) and math.isfinite(there) \
+        and there <= TURN_MISS * here
 
 
 def _measured_latent(prepared, plan: FitPlan) -> np.ndarray:
