@@ -34,6 +34,9 @@ class StateGauge:
     offset_learned: bool
     positive: bool  # the state sits under sqrt, log or a fractional power: start it inside the domain
     reason: str
+    # the equation pins the state's zero (a shift changes its solutions: sin(theta), -k*x), whether or
+    # not b is learned: an observation that reads the state with an uncertain zero may refine it
+    zero_pinned: bool = False
 
     def describe(self) -> str:
         s = "s learned" if self.scale_learned else "s = 1"
@@ -55,7 +58,7 @@ def gauge_plan(system: OdeSystem, *, seed: int = _SEED) -> dict[str, StateGauge]
         why = ["the equation fixes its scale" if scale else "its scale is free",
                "its zero too" if offset else ("it swings about 0 like the latent" if pinned_offset
                                                else "its zero is free")]
-        plan[s] = StateGauge(s, scale, offset, _under_domain(system, s), "; ".join(why))
+        plan[s] = StateGauge(s, scale, offset, _under_domain(system, s), "; ".join(why), pinned_offset)
     return plan
 
 

@@ -254,3 +254,38 @@ def test_the_look_fits_its_circle_only_when_asked_whether_the_path_swings(monkey
     swing = auto.Look(travel=140.0, size=5.0, one_way=0.05, bent=arc)
     assert swing.swings and swing.swings and fits == [200]
     assert swing.arc().radius == pytest.approx(215, rel=1e-3)
+
+
+def test_the_fit_refines_the_angles_zero_where_the_equation_pins_it():
+    """A small swing read 0.0024 rad off its zero (the turning points' middle on a short clip): with
+    the zero fixed, sin of the shifted angle is no trajectory and L misses by far more than its
+    error; the angle observation's gauge learns the zero and gives L and the offset back. An
+    equation whose zero is free keeps the angle as read."""
+    from fitode.eqparse.gauge import gauge_plan
+    from fitode.train.trajectory import fit_trajectory, long_options
+    from scipy.integrate import solve_ivp
+
+    system = parse("theta'' = -g/L*sin(theta) - zeta*theta'")
+    params = {"g": 9.80665}
+    dt, L, zeta = 1 / 30, 1.18, 0.058
+    t = np.arange(100) * dt
+    path = solve_ivp(lambda _, y: [y[1], -9.80665 / L * np.sin(y[0]) - zeta * y[1]], (0, t[-1]), [0.12, 0.0],
+                     t_eval=t, rtol=1e-11, atol=1e-12).y[0]
+    read = (path + 0.0024 + np.random.default_rng(0).normal(0, 2e-4, len(t)))[:, None]
+    gauge = AngleObservation().gauge_plan(gauge_plan(system))
+    assert gauge["theta"].offset_learned and not gauge["theta"].scale_learned
+    start = {"L": 1.0, "zeta": 0.05}
+    refined = fit_trajectory(system, params, read, dt, start, gauge=gauge, **long_options(len(t)))
+    fixed = fit_trajectory(system, params, read, dt, start, **long_options(len(t)))
+    assert refined.values["L"] == pytest.approx(L, rel=2e-3)
+    assert refined.gauge["theta"]["offset"] == pytest.approx(-0.0024, abs=3e-4)
+    assert fixed.misfit > 3 * refined.misfit
+    # the halves of the clip (consistency.whole_clip_check) disagree about the angle as read, not as refined
+    from types import SimpleNamespace
+    from fitode.train.consistency import whole_clip_check
+    config = SimpleNamespace(integrator="rk4", substeps=1)
+    assert whole_clip_check(system, params, read, dt, fixed.values, config)[0] is not None
+    state = read + refined.gauge["theta"]["offset"]
+    assert whole_clip_check(system, params, state, dt, refined.values, config)[0] is None
+    free = parse("theta'' = -k*theta'")  # its zero is free: nothing to refine
+    assert not AngleObservation().gauge_plan(gauge_plan(free))["theta"].offset_learned

@@ -108,7 +108,7 @@ def full_fit(system, params: Mapping, x: np.ndarray, dt: float, lead: Trajectory
         return fit_trajectory(system, params, x, dt, lead.values, gauge=gauge, **options)
     scale = np.array([max(float((lead.gauge or {}).get(st, {}).get("scale", SCALE_FLOOR)), SCALE_FLOOR)
                       if st in learned else 1.0 for st in system.states])
-    held = {st: (StateGauge(st, False, g.offset_learned, g.positive, g.reason) if st in learned else g)
+    held = {st: (StateGauge(st, False, g.offset_learned, g.positive, g.reason, g.zero_pinned) if st in learned else g)
             for st, g in gauge.items()}
     full = fit_trajectory(system, params, x * scale, dt, lead.values, gauge=held, **options)
     if full is None:

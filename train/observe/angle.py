@@ -56,9 +56,9 @@ class AngleObservation(MeasuredObservation):
         gave its own L (1.157 and 1.208 for 1.1792) and the verdict was ambiguous though L was
         right. A zero the equation leaves free stays where it was read."""
         from fitode.eqparse.gauge import StateGauge
-        return {s: StateGauge(s, False, not g.offset_learned, False,
-                              "measured in radians by the angle observation"
-                              + ("; the direction it hangs in refined by the fit" if not g.offset_learned else ""))
+        return {s: StateGauge(s, False, g.zero_pinned, False, "measured in radians by the angle observation"
+                              + ("; the direction it hangs in refined by the fit" if g.zero_pinned else ""),
+                              g.zero_pinned)
                 for s, g in plan.items()}
 
     def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
