@@ -50,6 +50,7 @@ OFFSET = 0.25     # the largest change of the object's brightness (beyond a gain
 BACKGROUND_FRAMES = 48  # frames spread over the clip whose median is the static scene (static_scene)
 WHOLE = 1.2      # the object followed again with its whole cut where that has this many times the seed cut's area
 OWN_FRAMES = 16  # frames whose own change places the object's centre (_centre)
+OFF_CENTRE = 1.0  # ... or where the template's reference point lies this many pixels from that centre
 EDGE = 2          # pixels on either side of the object's outline that mix it with what lies behind
 RING_QUANTILE = 0.25  # the share of the ring around the object that must still show what surrounded it
 
@@ -92,11 +93,12 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
     if outline is not None:
         sample, cut, clear = outline
         shift, whole = _centre(stack, xy, t0, sample, cut, clear, noise)
-        if whole is not None and whole[4] >= WHOLE * area:
+        if whole is not None and (whole[4] >= WHOLE * area or float(np.hypot(*shift)) > OFF_CENTRE):
             # the seed's cut was a crescent of the object (it covered its own place in the static
             # scene): a template without one of its ends leaves the object free to slide along it
             # where something passes behind the other (the can on its spring: 7 px as a leg
-            # passed), and its reference point, away from the centre, turns about it as it turns;
+            # passed), and its reference point, away from the centre, turns about it as it turns
+            # (a can cut 2.6 px off its centre, turning by 0.2 rad: 0.6 px);
             # the second following is kept where it places the object as often and keeps its look as well (a whole cut that
             # took in a part of the scene beside the object follows it worse)
             again = _track(stack, seed_xy, t0, whole[0], whole[1], whole[2], whole[4], whole[5], background, noise)
