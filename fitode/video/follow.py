@@ -10,8 +10,8 @@ in a window around the place its last two positions predict:
 - cv2.matchTemplate (normalised correlation, the object's mask as weights) gives the whole-pixel
   peak; the predicted place itself is refined too (something passing behind may hold the peak);
 - a few Gauss-Newton steps of the template's translation, with a gain and an offset for the
-  light, weighted by the mask and robustly (Cauchy) against what crosses behind, give the
-  sub-pixel place and, from the residuals and the steps' normal matrix, its standard error;
+  light, weighted by the mask and robustly (Cauchy) against what crosses behind (an edge pixel
+  trusted no more than the surroundings next to it), give the sub-pixel place and, from the residuals and the steps' normal matrix, its standard error;
 - a frame whose best match correlates under HIDDEN is marked hidden (NaN), never filled with
   whatever stands there (nor a fair match beside such a frame); the search widens while the
   object is lost and covers the frame after LOST frames; a lost object is cut afresh from the
