@@ -10,8 +10,8 @@ in a window around the place its last two positions predict:
 - cv2.matchTemplate (normalised correlation, the object's mask as weights) gives the whole-pixel
   peak; the predicted place itself is refined too (something passing behind may hold the peak);
 - a few Gauss-Newton steps of the template's translation, with a gain and an offset for the
-  light, weighted by the mask and robustly (Cauchy) against what crosses behind, give the
-  sub-pixel place and, from the residuals and the steps' normal matrix, its standard error;
+  light, weighted by the mask and robustly (Cauchy) against what crosses behind (an edge pixel
+  trusted no more than the surroundings next to it), give the sub-pixel place and, from the residuals and the steps' normal matrix, its standard error;
 - a frame whose best match correlates under HIDDEN is marked hidden (NaN), never filled with
   whatever stands there (nor a fair match beside such a frame); the search widens while the
   object is lost and covers the frame after LOST frames; a lost object is cut afresh from the
@@ -50,6 +50,8 @@ OFFSET = 0.25     # the largest change of the object's brightness (beyond a gain
 BACKGROUND_FRAMES = 48  # frames spread over the clip whose median is the static scene (static_scene)
 WHOLE = 1.2      # the object followed again with its whole cut where that has this many times the seed cut's area
 OWN_FRAMES = 16  # frames whose own change places the object's centre (_centre)
+OFF_CENTRE = 1.0  # ... or where the template's reference point lies this many pixels from that centre
+EDGE = 2          # pixels on either side of the object's outline that mix it with what lies behind
 RING_QUANTILE = 0.25  # the share of the ring around the object that must still show what surrounded it
 
 
@@ -91,11 +93,12 @@ def follow_object(stack: np.ndarray, seed_xy: np.ndarray, background: np.ndarray
     if outline is not None:
         sample, cut, clear = outline
         shift, whole = _centre(stack, xy, t0, sample, cut, clear, noise)
-        if whole is not None and whole[4] >= WHOLE * area:
+        if whole is not None and (whole[4] >= WHOLE * area or float(np.hypot(*shift)) > OFF_CENTRE):
             # the seed's cut was a crescent of the object (it covered its own place in the static
             # scene): a template without one of its ends leaves the object free to slide along it
             # where something passes behind the other (the can on its spring: 7 px as a leg
-            # passed), and its reference point, away from the centre, turns about it as it turns;
+            # passed), and its reference point, away from the centre, turns about it as it turns
+            # (a can cut 2.6 px off its centre, turning by 0.2 rad: 0.6 px);
             # the second following is kept where it places the object as often and keeps its look as well (a whole cut that
             # took in a part of the scene beside the object follows it worse)
             again = _track(stack, seed_xy, t0, whole[0], whole[1], whole[2], whole[4], whole[5], background, noise)
@@ -346,7 +349,10 @@ def _cut(frame, background, noise, near, change=None, bridge: int = 0, centre: b
         return None
     full = max(float(np.quantile(core, 0.1)), low)
     cover = _cover(change, filled, bridged, full, low) if centre else np.clip(change / full, 0.0, 1.0)
-    cover = np.where((filled > region) | (bridged & (region > 0)), 1.0, np.where(cv2.dilate(filled, None) > 0, cover, 0.0))
+    # a gap bridged inside the object is the object's; one on its outline may be the notch between
+    # it and a thin part cut off (the spring's last coil on the can's top) and counts by its change
+    inner_gap = bridged & (region > 0) & (cv2.erode(filled, np.ones((5, 5), np.uint8)) > 0)
+    cover = np.where((filled > region) | inner_gap, 1.0, np.where(cv2.dilate(filled, None) > 0, cover, 0.0))
     area = float(cover.sum())
     x0, y0 = max(bx - MARGIN, 0), max(by - MARGIN, 0)
     x1, y1 = min(bx + bw + MARGIN, w), min(by + bh + MARGIN, h)
@@ -371,11 +377,11 @@ def _cover(change, filled, bridged, full, low) -> np.ndarray:
     covered and move its centre towards those that differ most (a banded block: 0.5-0.9 px);
     an edge where a band meets the wall differs as that band does. full: the level where no
     inside lies near (an object too small to have one)."""
-    deep = (cv2.erode(filled, np.ones((3, 3), np.uint8)) > 0) & ~bridged
+    deep = (cv2.erode(filled, np.ones((5, 5), np.uint8)) > 0) & ~bridged
     if not deep.any():
         return np.clip(change / full, 0.0, 1.0)
-    near = cv2.boxFilter(deep.astype(np.float32), -1, (3, 3), normalize=False)
-    level = cv2.boxFilter(np.where(deep, change, 0.0).astype(np.float32), -1, (3, 3), normalize=False)
+    near = cv2.boxFilter(deep.astype(np.float32), -1, (5, 5), normalize=False)
+    level = cv2.boxFilter(np.where(deep, change, 0.0).astype(np.float32), -1, (5, 5), normalize=False)
     local = np.where(near > 0, level / np.maximum(near, 1e-6), full)
     return np.where(deep, 1.0, np.clip(change / np.maximum(local, low), 0.0, 1.0)).astype(np.float32)
 
@@ -644,6 +650,7 @@ def _refine(frame, template, weight, ref, place, angle=0.0):
         # behind the object's edge misfits by the whole contrast and would widen an RMS scale
         scale = max(1.4826 * float(np.median(np.abs(resid[wgt > 0]))), 1e-3)
         robust = 1.0 / (1.0 + (resid / (3.0 * scale)) ** 2)
+        robust = _edges_as_around(robust, weight)
         step = np.clip(d[:2], -1.0, 1.0)  # the linearisation holds within about a pixel
         turn = float(np.clip(d[2], -0.05, 0.05))
         c, s = math.cos(angle), math.sin(angle)
@@ -658,6 +665,24 @@ def _refine(frame, template, weight, ref, place, angle=0.0):
         se = math.inf
     patch = _sample(frame, place, angle, ref, template.shape).astype(np.float32)
     return place, se, _score(patch, template, weight), patch, angle
+
+
+def _edges_as_around(robust, weight):
+    """The robust weights (flat, one per template pixel) with each pixel of the object's edge
+    trusted no more than the outer ring of surroundings next to it. An edge pixel mixes the object
+    with what lies behind it; where that changed (a dark leg behind the can's edge, where the
+    template had the wall) it misfits by only a share of the change, too little to be set aside on
+    its own, and every one of them pulls the same way. The outer ring, MARGIN pixels out, says so
+    whatever the template's misplacement: it lies beyond the edge's blur."""
+    inside = (weight >= 1.0).astype(np.uint8)
+    outer = (weight > 0) & (cv2.dilate(inside, np.ones((3, 3), np.uint8)) == 0)
+    if not outer.any():
+        return robust
+    img = robust.reshape(weight.shape)
+    reach = 2 * EDGE + 1  # the outer ring's pixels reach the object's first row of pixels
+    around = cv2.erode(np.where(outer, img, 1.0).astype(np.float32), np.ones((reach, reach), np.uint8))
+    deep = cv2.erode(inside, np.ones((2 * EDGE + 1, 2 * EDGE + 1), np.uint8)) > 0
+    return np.where(deep, img, np.minimum(img, around)).ravel().astype(robust.dtype)
 
 
 def _score(patch, template, weight) -> float:
