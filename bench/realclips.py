@@ -679,8 +679,12 @@ def run(args: argparse.Namespace) -> int:
                 iv = (f or {}).get("interval")
                 within = "" if not iv else f", 95% [{iv[0]:.5g}, {iv[1]:.5g}]" + (
                     " holds the tracker's" if iv[0] <= r["value"] <= iv[1] else " misses the tracker's")
+                # the value to the interval's digits: the restarts' spread beside it (3e-10 on the bottle,
+                # where every restart lands alike) says nothing of how well the clip pins it
+                value = f"{f['value']:.5g}" if f and iv and f.get("value") is not None else \
+                    _fmt((f or {}).get("value"), (f or {}).get("std"))
                 fit_txt = ("not run" if f is None else f.get("error")
-                           or f"{_fmt(f.get('value'), f.get('std'))}{within} ({f.get('verdict') or 'no verdict'})")
+                           or f"{value}{within} ({f.get('verdict') or 'no verdict'})")
             table.append({"clip": name, "quantity": r["quantity"], "tracker": _fmt(r["value"], r["err"]),
                           "stated": stated, "fitode": fit_txt})
         bc.progress(f"{name}: done in {time.perf_counter() - t0:.0f} s")

@@ -337,3 +337,20 @@ def test_an_unnamed_line_is_read_the_way_the_equation_writes_its_constant(tmp_pa
     assert np.dot(d_down, d_up) == pytest.approx(-1.0, abs=1e-6)
     assert "against the way it first moves" in up.meta["subspace"]
     assert "positive the way it first moves" in down.meta["subspace"]
+
+
+@pytest.mark.slow
+def test_a_held_swing_is_cut_at_its_release_with_the_angles_zero_refined(tmp_path):
+    """A hand holds the bob at 43 degrees for 1.8 s, then lets go. The fit refines the angle's zero
+    (observe.angle), but the search for the stretch holds it as read: free in every stretch tried,
+    the hold was a swing at rest about a shifted zero, the whole clip "one trajectory", and its fit
+    failed (L 1.44 for 0.8645, NOT TRUSTWORTHY)."""
+    import fitode
+    from fitode import synth
+
+    v = synth.scene("held_pendulum", 0.8644984, theta0_deg=42.8, hold=1.8, duration=5.2, size=(180, 320),
+                    noise=1.83, seed=1528)
+    result = fitode.fit(str(synth.write_video(v, tmp_path / "held.mp4")), system="pendulum")
+    assert result.meta["stretch"]["start_s"] == pytest.approx(v.meta["physical"]["hold_s"], abs=0.1)
+    assert result.parameters["L"].value == pytest.approx(0.8644984, rel=0.005)
+    assert result.verdicts["L"]["verdict"] == "trusted"

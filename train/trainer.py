@@ -454,6 +454,11 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
         return (0, n), _stretch_record((0, n), plan, "the whole clip", plan.observation.no_stretch), None
     system, params, config = plan.system, plan.params, plan.config
     warm = dict(restart_inits(system, params, 1, config.seed, plan.init)[0])
+    if plan.observation.physical_units:
+        # a zero the fit refines (the angle's, observe.angle) is one for the whole clip: free in each
+        # stretch the search tries, a hold is a swing at rest about a shifted zero (a held pendulum's
+        # 1.8 s at 43 degrees joined its swing as "one trajectory", and the fit of both failed)
+        gauges = {s: replace(g, offset_learned=False) for s, g in gauges.items()}
     with _threads(config.threads):
         first = screen(system, params, latent[:n], plan.dt, warm, gauge=gauges,
                        integrator=config.integrator, substeps=config.substeps)
