@@ -629,6 +629,7 @@ def _refine(frame, template, weight, ref, place, angle=0.0):
     vs, us = np.mgrid[0:th, 0:tw].astype(np.float64)
     u, v = (us - ref[0]).ravel(), (vs - ref[1]).ravel()
     robust = np.ones_like(wgt)
+    edges = _edge_masks(weight)  # the template's, the same at every step
     place = np.asarray(place, dtype=np.float64).copy()
     a = None
     s2 = 0.0
@@ -650,7 +651,7 @@ def _refine(frame, template, weight, ref, place, angle=0.0):
         # behind the object's edge misfits by the whole contrast and would widen an RMS scale
         scale = max(1.4826 * float(np.median(np.abs(resid[wgt > 0]))), 1e-3)
         robust = 1.0 / (1.0 + (resid / (3.0 * scale)) ** 2)
-        robust = _edges_as_around(robust, weight)
+        robust = _edges_as_around(robust, edges)
         step = np.clip(d[:2], -1.0, 1.0)  # the linearisation holds within about a pixel
         turn = float(np.clip(d[2], -0.05, 0.05))
         c, s = math.cos(angle), math.sin(angle)
@@ -667,21 +668,31 @@ def _refine(frame, template, weight, ref, place, angle=0.0):
     return place, se, _score(patch, template, weight), patch, angle
 
 
-def _edges_as_around(robust, weight):
-    """The robust weights (flat, one per template pixel) with each pixel of the object's edge
-    trusted no more than the outer ring of surroundings next to it. An edge pixel mixes the object
-    with what lies behind it; where that changed (a dark leg behind the can's edge, where the
-    template had the wall) it misfits by only a share of the change, too little to be set aside on
-    its own, and every one of them pulls the same way. The outer ring, MARGIN pixels out, says so
-    whatever the template's misplacement: it lies beyond the edge's blur."""
+def _edge_masks(weight) -> tuple[np.ndarray, np.ndarray] | None:
+    """The template's outer ring of surroundings (beyond the edge's blur) and its object's deep
+    inside (EDGE pixels from the outline), (h, w) bool each, for _edges_as_around; None where the
+    template has no outer ring."""
     inside = (weight >= 1.0).astype(np.uint8)
     outer = (weight > 0) & (cv2.dilate(inside, np.ones((3, 3), np.uint8)) == 0)
     if not outer.any():
+        return None
+    deep = cv2.erode(inside, np.ones((2 * EDGE + 1, 2 * EDGE + 1), np.uint8)) > 0
+    return outer, deep
+
+
+def _edges_as_around(robust, edges):
+    """The robust weights (flat, one per template pixel) with each pixel of the object's edge
+    trusted no more than the outer ring of surroundings next to it (edges: _edge_masks). An edge
+    pixel mixes the object with what lies behind it; where that changed (a dark leg behind the
+    can's edge, where the template had the wall) it misfits by only a share of the change, too
+    little to be set aside on its own, and every one of them pulls the same way. The outer ring,
+    MARGIN pixels out, says so whatever the template's misplacement: it lies beyond the edge's blur."""
+    if edges is None:
         return robust
-    img = robust.reshape(weight.shape)
+    outer, deep = edges
+    img = robust.reshape(outer.shape)
     reach = 2 * EDGE + 1  # the outer ring's pixels reach the object's first row of pixels
     around = cv2.erode(np.where(outer, img, 1.0).astype(np.float32), np.ones((reach, reach), np.uint8))
-    deep = cv2.erode(inside, np.ones((2 * EDGE + 1, 2 * EDGE + 1), np.uint8)) > 0
     return np.where(deep, img, np.minimum(img, around)).ravel().astype(robust.dtype)
 
 
