@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -101,15 +101,13 @@ def full_fit(system, params: Mapping, x: np.ndarray, dt: float, lead: Trajectory
     through its nonlinearity (a pendulum's swing read as a position) trades against the
     constants (a swing made 25 degrees to bend the period, L 2.4% off on the real bob clip),
     where short windows keep to what the path shows. The fit's gauge is reported in x's units."""
-    from fitode.eqparse.gauge import StateGauge
 
     learned = {st: g for st, g in (gauge or {}).items() if g is not None and g.scale_learned}
     if not learned:
         return fit_trajectory(system, params, x, dt, lead.values, gauge=gauge, **options)
     scale = np.array([max(float((lead.gauge or {}).get(st, {}).get("scale", SCALE_FLOOR)), SCALE_FLOOR)
                       if st in learned else 1.0 for st in system.states])
-    held = {st: (StateGauge(st, False, g.offset_learned, g.positive, g.reason, g.zero_pinned) if st in learned else g)
-            for st, g in gauge.items()}
+    held = {st: (replace(g, scale_learned=False) if st in learned else g) for st, g in gauge.items()}
     full = fit_trajectory(system, params, x * scale, dt, lead.values, gauge=held, **options)
     if full is None:
         return None

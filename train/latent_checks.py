@@ -36,7 +36,8 @@ def crossing_period(series: np.ndarray, dt: float) -> float | None:
     oscillates over the clip does), else None. For a noiseless curve, where the spectrum of two
     cycles may not stand out of its low edge."""
     x = np.asarray(series, dtype=float)
-    x = (x if x.ndim == 1 else x[:, 0]) - float(np.mean(x if x.ndim == 1 else x[:, 0]))
+    x = x if x.ndim == 1 else x[:, 0]
+    x = x - float(np.mean(x))
     if len(x) < 8 or not np.all(np.isfinite(x)):
         return None
     i = np.flatnonzero(np.signbit(x[1:]) != np.signbit(x[:-1]))
