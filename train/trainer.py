@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import copy
 import math
-import re
 from dataclasses import dataclass, replace
 from typing import Callable, Mapping, Sequence
 
@@ -271,22 +270,13 @@ def _negatives(fit, plan: FitPlan) -> int:
 
 
 def _turned_line(prepared, plan: FitPlan, fit):
-    """The prepared path read the other way along its line, where which way is positive is a
-    convention: one state with no axis in its name, read along the object's line of motion
-    (observe.position: positive the way the object first moves), whose best fit has a negative
-    constant. A cart released at the top of its incline first moves down it, while `s'' = -a`
-    measures s up it: read the first way, a comes out negative. None where that does not apply."""
-    drawing = prepared.drawing or {}
-    # a single reader's drawing says its reading; the per-state reader's, each state's (observe.per_state)
-    line_read = drawing.get("reading") == "line" or list((drawing.get("states") or {}).values()) == ["line"]
-    if prepared.states is None or len(prepared.states) != 1 or not line_read or not _negatives(fit, plan):
+    """The prepared path read the other way along its line (observe.position.read_the_other_way),
+    where which way is positive is a convention and the best fit read the first way has a negative
+    constant; None otherwise."""
+    if not _negatives(fit, plan):
         return None
-    line = drawing.get("line") or {}
-    turned_line = {**line, "direction": [-v for v in line.get("direction", [])]} if line else line
-    note = re.sub(r"positive the way it first moves \((\d+) degrees",
-                  lambda m: ("positive against the way it first moves, the way the equation's constants come out "
-                             f"positive as it writes them ({(int(m.group(1)) + 180) % 360} degrees"), prepared.note)
-    return replace(prepared, inputs=-prepared.inputs, note=note, drawing={**drawing, "line": turned_line})
+    from .observe.position import read_the_other_way
+    return read_the_other_way(prepared)
 
 
 def _turn_pays(fit, turned, plan: FitPlan) -> bool:

@@ -64,7 +64,8 @@ def auto_rule(power_symmetric: bool) -> list[str]:
     moving = ("auto -> position where the change moves one way (a fall, a slide, a level), where it moves and "
               "every state's name says its image axis (x across; y, h, z up), or where a single state whose scale "
               "and zero the equation leaves free (s'' = -a) moves back and forth along a straight line (read along "
-              "it, positive the way it first moves): " + MODELS["position"].line)
+              "it, positive the way it first moves, or the other way where the equation's constants then come out "
+              "positive): " + MODELS["position"].line)
     if not power_symmetric:
         return [level, moving, "elsewhere any, as no constant follows a bend of the latent: " + MODELS["any"].line]
     return [level, moving, "brightness where the change stays in place (it brightens or dims): " + MODELS["brightness"].line,

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -25,6 +26,7 @@ BARELY = 0.05
 AXIS_SHARE = 0.3
 TILT = 0.002  # a straight path this much longer than its reading along the named axis is said (tilt_hint)
 FIRST_MOVE = 0.25  # the share of a path's range it must go from its start to say which way it moves
+FIRST_WAY = "positive the way it first moves"  # how a line's direction is said (_line, read_the_other_way)
 TRACK_AGREE = 0.9  # the least correlation of the track's path with the shrunk frames' centroids' to read it
 
 
@@ -35,6 +37,24 @@ def first_move(path: torch.Tensor) -> float:
     away = path - path[0]
     far = torch.nonzero(away.abs() >= FIRST_MOVE * float(path.max() - path.min())).flatten()
     return float(torch.sign(away[far[0]])) if len(far) and float(path.max() - path.min()) > 0 else 0.0
+
+
+def read_the_other_way(prepared: Prepared) -> Prepared | None:
+    """The prepared column of a single state read along its line of motion (_line), read the other
+    way: its values, its drawn direction and its note turned (the trainer takes it where the
+    equation's constants then come out positive as written: s'' = -a on a cart released at the top
+    of its incline, which first moves down it). None where the column is no such reading."""
+    drawing = prepared.drawing or {}
+    # a single reader's drawing says its reading; the per-state reader's, each state's (observe.per_state)
+    line_read = drawing.get("reading") == "line" or list((drawing.get("states") or {}).values()) == ["line"]
+    if prepared.states is None or len(prepared.states) != 1 or not line_read:
+        return None
+    line = drawing.get("line") or {}
+    turned = {**line, "direction": [-v for v in line.get("direction", [])]} if line else line
+    note = re.sub(FIRST_WAY + r" \((\d+) degrees",
+                  lambda m: ("positive against the way it first moves, the way the equation's constants come out "
+                             f"positive as it writes them ({(int(m.group(1)) + 180) % 360} degrees"), prepared.note)
+    return replace(prepared, inputs=-prepared.inputs, note=note, drawing={**drawing, "line": turned})
 
 
 def axis_of(state: str) -> str | None:
@@ -109,7 +129,7 @@ def _tilt_hint(xy: torch.Tensor, states: tuple[str, ...], axes: list[str]) -> st
     return (f"{states[0]} is read {'across' if axes[0] == 'x' else 'up'} the image, as its name says; the object "
             f"moves along a straight line {degrees:.1f} degrees from that axis, where its path is "
             f"{100 * (1.0 / along - 1.0):.2g}% longer: where the equation is of the distance along that line (a slide, "
-            "a cart on an incline), name the state s to measure it so (positive the way it first moves)")
+            "a cart on an incline), name the state s to measure it so")
 
 
 # what a position reads: the change's centroid, the object followed by its appearance where the
@@ -212,8 +232,8 @@ class PositionObservation(MeasuredObservation):
             direction, raw, path = -direction, -raw, -path
         z = path / path[:n_fit].std().clamp_min(1e-6)
         angle = float(torch.rad2deg(torch.atan2(-direction[1], direction[0]))) % 360  # image y points down
-        note = (f"position: {where}{what.format(pixels=pixels)}, along its line of motion, positive the way it "
-                f"first moves ({angle:.0f} degrees from the image's x axis, counter-clockwise), read linearly")
+        note = (f"position: {where}{what.format(pixels=pixels)}, along its line of motion, {FIRST_WAY} "
+                f"({angle:.0f} degrees from the image's x axis, counter-clockwise), read linearly")
         note = _mended(note, mended)
         frames = tuple(int(i) for i in torch.nonzero(path != raw).flatten())
         drawing = record(self.name, reading="line", track=points(xy), mended=list(frames) if mended else None,
