@@ -4,8 +4,8 @@
 (fitode.compare) and reports the preferred one, with a table of every candidate.
 
 Prints what it understood, trains, prints a table of the estimates, and writes an output folder
-(result.json, fit.json, estimates.csv, track.csv, latent.png, params.png, loss.png, frames.png,
-track.png). --json prints result.json on stdout and moves every human line to stderr, so stdout
+(result.json, fit.json, estimates.csv, track.csv, latent.png, frames.png, track.png, and where an
+encoder was trained params.png and loss.png). --json prints result.json on stdout and moves every human line to stderr, so stdout
 is pure JSON.
 """
 from __future__ import annotations

@@ -94,13 +94,15 @@ def _plots_for_result(folder: Path, result, report, plots_done: list[str], t0: f
     if result.calibration is not None:
         latent, rollout = np.asarray(result.calibration["latent"]), np.asarray(result.calibration["rollout"])
         ylabels = result.calibration["ylabels"]
-    shown = plots.params_view(result, report["parameters"])
+    measured = bool(result.meta.get("direct"))
     warnings = [
         _try_plot(plots.plot_latent, folder / "latent.png", result.time + t0, latent, rollout, result.train_frames,
                   result.states, window=int(result.settings.get("window", 0)) or None, ylabels=ylabels,
-                  angles=plots.angle_states(result), measured=bool(result.meta.get("direct")), plots_done=plots_done),
-        _try_plot(plots.plot_params, folder / "params.png", runs, estimates, units=units, **shown,
-                  plots_done=plots_done),
-        _try_plot(plots.plot_loss, folder / "loss.png", runs, plots_done=plots_done),
+                  angles=plots.angle_states(result), measured=measured, plots_done=plots_done),
     ]
+    if not measured:  # a path fitted directly has no training: its "history" is a solver's two end points
+        shown = plots.params_view(result, report["parameters"])
+        warnings += [_try_plot(plots.plot_params, folder / "params.png", runs, estimates, units=units, **shown,
+                               plots_done=plots_done),
+                     _try_plot(plots.plot_loss, folder / "loss.png", runs, plots_done=plots_done)]
     return [w for w in warnings if w]

@@ -3,7 +3,8 @@
 run_video reads the video, says what it understood, fits, calibrates when asked, and writes
 an output folder: result.json (the report), fit.json (the full FitResult with every run's
 history, reloadable with FitResult.load), estimates.csv and track.csv (fitode.tables), latent.png,
-params.png, loss.png, frames.png and track.png (what was measured, drawn on the frames).
+frames.png, track.png (what was measured, drawn on the frames), and where an encoder was trained
+params.png and loss.png.
 An interrupted run (Ctrl-C, SIGTERM) or one where every restart failed still leaves a folder, with
 result.json marked "interrupted" (with the "stage" it stopped in: fitode.interrupted) or "failed",
 estimates.csv (the estimates wherever a fit finished) and whatever plots its data allow.

@@ -128,8 +128,8 @@ class Result(FitResult):
     # ------------------------------------------------------------------ keeping it
     def save(self, folder: str | Path) -> Path:
         """Write the files of `fitode VIDEO`'s folder that a result alone can make: result.json,
-        fit.json (reload with Result.load), estimates.csv, track.csv, latent.png, params.png and
-        loss.png (track.png and frames.png need the video: `fitode VIDEO` draws them). The folder
+        fit.json (reload with Result.load), estimates.csv, track.csv, latent.png, and params.png and
+        loss.png where an encoder was trained (track.png and frames.png need the video: `fitode VIDEO` draws them). The folder
         must not exist or be empty: nothing is overwritten. Returns the folder."""
         from fitode import report as rep
         from fitode.output import _check_out_dir, _plots_for_result

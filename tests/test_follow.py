@@ -205,3 +205,9 @@ def test_a_dark_bar_behind_one_edge_does_not_pull_the_place(side):
         truth = centre + np.array([sub, 0.0])
         place = _refine(frame, template, weight, ref, truth)[0]
         assert np.linalg.norm(place - truth) < 0.25
+
+
+def test_the_typical_cuts_are_never_none():
+    from fitode.video.follow import _typical
+    assert _typical([100.0, 200.0]).tolist() == [False, True]  # both off their median: the nearer one is kept
+    assert _typical([100.0, 104.0, 300.0]).tolist() == [True, True, False]

@@ -124,8 +124,9 @@ def test_a_calibrated_run_writes_track_png_and_labels_its_plots_in_physical_unit
         labels[Path(path).name] = [ax.get_ylabel() for ax in fig.axes]
         return save(fig, path)
     monkeypatch.setattr(plots, "_save", keep)
+    # a trained encoder (observe any), so that params.png, drawn only after training, is there
     out = run_job(glow, tmp_path / "c", eq="I' = -gamma*I + c", calibrate="I(0)=1; I(3.5)=0.3", log=None,
-                  restarts=2, max_steps=10, window=8, stride=1)
+                  restarts=2, max_steps=10, window=8, stride=1, observe="any")
     assert "track.png" in out.report["files"] and (out.out_dir / "track.png").stat().st_size > 1000
     assert out.report["measurement"]["kind"] == json.loads((out.out_dir / "result.json").read_text())["measurement"]["kind"]
     assert all("calibrated" in label for label in labels["latent.png"])

@@ -45,6 +45,21 @@ def test_a_bend_whose_pole_falls_inside_the_frames_is_refused():
     assert unbend(x, 1.2, 0.0) is None  # 1 + c (x - m) reaches zero at x = -0.83
 
 
+def test_a_path_read_through_a_new_bend_says_the_bend_once():
+    import torch
+
+    from fitode.train.observe.base import Prepared
+    from fitode.train.observe.position import PositionObservation
+    seen = _seen_at_an_angle(_fall(0.0, noise=0.0)[:, 0], -0.08)
+    prepared = Prepared(torch.as_tensor(seen, dtype=torch.float32).reshape(-1, 1, 1, 1), np.zeros((len(seen), 1)), 1,
+                        "the reader's track")
+    bend = {"c": 0.01, "middle": float(seen.mean()), "misfit": (3.0, 1.0), "bend_at_ends": 0.08}
+    once = PositionObservation().reread(prepared, seen[:, None], bend, len(seen))
+    twice = PositionObservation().reread(once, seen[:, None], {**bend, "misfit": (2.0, 1.0)}, len(seen))
+    assert once.note.count("perspective") == twice.note.count("perspective") == 1
+    assert twice.note.startswith("the reader's track;") and "2.0x better" in twice.note
+
+
 def _drag_fall(t: np.ndarray, k: float = 0.2724, g: float = 9.80665) -> np.ndarray:
     vt = np.sqrt(g / k)
     return vt ** 2 / g * np.log(np.cosh(g * t / vt))

@@ -93,7 +93,9 @@ def test_plot_draws_the_state_and_the_fit_on_one_figure(result, tmp_path):
 def test_save_writes_the_folder_and_load_reads_it_back(result, tmp_path):
     folder = result.save(tmp_path / "run")
     names = {p.name for p in folder.iterdir()}
-    assert names >= {"result.json", "fit.json", "estimates.csv", "track.csv", "latent.png", "params.png", "loss.png"}
+    assert names >= {"result.json", "fit.json", "estimates.csv", "track.csv", "latent.png"}
+    # the lamp's light is measured and fitted directly: no training, so no training pictures
+    assert result.meta["direct"] and not names & {"params.png", "loss.png"}
     report = json.loads((folder / "result.json").read_text())
     assert report["status"] == "complete" and sorted(report["files"]) == sorted(names)
     assert report["parameters"]["gamma"]["interval"] == result.parameters["gamma"].interval

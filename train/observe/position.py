@@ -26,6 +26,7 @@ BARELY = 0.05
 AXIS_SHARE = 0.3
 TILT = 0.002  # a straight path this much longer than its reading along the named axis is said (tilt_hint)
 FIRST_MOVE = 0.25  # the share of a path's range it must go from its start to say which way it moves
+BENT = "; read through the camera's perspective"
 FIRST_WAY = "positive the way it first moves"  # how a line's direction is said (_line, read_the_other_way)
 TRACK_AGREE = 0.9  # the least correlation of the track's path with the shrunk frames' centroids' to read it
 
@@ -301,7 +302,8 @@ class PositionObservation(MeasuredObservation):
         z = (bent - bent[:fit_frames].mean()) / max(float(bent[:fit_frames].std()), 1e-12)
         if float(np.dot(z[:fit_frames], old[:fit_frames])) < 0:
             z = -z
-        note = (f"{prepared.note}; read through the camera's perspective: one trajectory of the equation fits "
+        first = prepared.note.split(BENT)[0]  # read again once more: the new bend replaces the last one's words
+        note = (f"{first}{BENT}: one trajectory of the equation fits "
                 f"the whole path {perspective['misfit'][0] / max(perspective['misfit'][1], 1e-300):.1f}x better "
                 f"when its ends are bent by {100 * perspective['bend_at_ends']:.1f}% (a camera that looks at the "
                 "line of motion at an angle), so it was trained again on the path so corrected")
