@@ -87,10 +87,11 @@ class Staged:
     plan: Any
     measurement: Any
     geometry: Any = None
+    array_track: Any = None  # the reader's track of frames given as an array (a clip's is its own)
 
     @property
     def track(self):
-        return None if self.clip is None else self.clip.track
+        return self.array_track if self.clip is None else self.clip.track
 
 
 def measure_clip(reqs, video, read: ReadOptions, *, progress: bool = False, dt: float | None = None) -> Staged:
@@ -118,9 +119,12 @@ def measure_array(reqs, frames, dt: float, time_offset: float = 0.0) -> Staged:
     """plan -> measure for frames given as an array (their pixels are the source's)."""
     from fitode import api
 
+    from fitode.video.track import track_array
+
     x = api.as_frames(frames)
-    plan = api.plan(reqs[0], x, dt)
-    return Staged(None, float(time_offset), x, float(dt), plan, api.measure(plan, x))
+    track = track_array(x.numpy())
+    plan = api.plan(reqs[0], x, dt, track=track)
+    return Staged(None, float(time_offset), x, float(dt), plan, api.measure(plan, x), array_track=track)
 
 
 def fit_staged(reqs, staged: Staged, *, rate: float = 0.0, callback=None, progress: bool = False,

@@ -211,3 +211,15 @@ def test_the_typical_cuts_are_never_none():
     from fitode.video.follow import _typical
     assert _typical([100.0, 200.0]).tolist() == [False, True]  # both off their median: the nearer one is kept
     assert _typical([100.0, 104.0, 300.0]).tolist() == [True, True, False]
+
+
+def test_frames_given_as_an_array_are_tracked_as_a_videos_are():
+    from fitode.video.track import track_array
+    yy, xx = np.mgrid[:48, :64]
+    centres = [(10.0 + 1.5 * t, 20.0 + 0.5 * t) for t in range(30)]
+    frames = np.stack([np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / 8.0) for cx, cy in centres])[:, None]
+    track = track_array(0.2 + 0.6 * frames)
+    assert track is not None and len(track) == 30
+    assert np.nanmax(np.abs(track.xy - np.array(centres))) < 0.3  # in the array's own pixels
+    assert track_array(np.random.default_rng(0).random((30, 2, 1, 1))) is None  # columns, not pictures
+    assert track_array(np.zeros((30, 1, 16, 16))) is None  # nothing to see

@@ -36,6 +36,7 @@ NOISE_SIGMAS = 4.0
 CORE = 0.5
 LOCATE = 4  # the whole factor the change is shrunk by to find the object's region
 MAX_OBJECTS = 3  # the strongest paths a track keeps for states that name their object
+MIN_SIDE = 8  # frames given as an array narrower than this are not pictures to track
 
 
 class TrackRecorder:
@@ -101,6 +102,22 @@ class TrackRecorder:
         note = f"{how}{size}, measured {where}"
         return Track(source(xy), float(area * k * k), k, note, objects(source(paths)), followed=found is not None,
                      line=line)
+
+
+def track_array(frames: np.ndarray) -> Track | None:
+    """The reader's track of frames given as an array (T, C, H, W) float (fitode.api.as_frames),
+    their pixels the source's: the same measure a video's frames get as they are decoded, so that
+    a clip and its frames passed as an array are read alike."""
+    x = np.asarray(frames, dtype=np.float32)
+    if x.ndim != 4 or x.shape[1] not in (1, 3) or min(x.shape[2:]) < MIN_SIDE:
+        return None  # not pictures: measured columns or subspace coefficients given as frames
+    lo, hi = float(x.min()), float(x.max())
+    if not hi > lo:
+        return None
+    recorder = TrackRecorder((0, 0, x.shape[3], x.shape[2]), len(x), "RGB")
+    for frame in x:
+        recorder.add(frame[0] if frame.shape[0] == 1 else frame.transpose(1, 2, 0), (1.0 / (hi - lo), lo), None)
+    return recorder.finish()
 
 
 def place(stack: np.ndarray, paths: np.ndarray, areas: np.ndarray,
