@@ -21,7 +21,7 @@ from fitode.eqparse import OdeSystem, deriv_symbol
 from .errors import CodegenError
 
 # Names the generated module itself uses; user names that collide get a trailing underscore.
-_RESERVED = {"torch", "math", "state", "vector_field", "subterms", "__builtins__"}
+_RESERVED = {"torch", "numpy", "math", "state", "out", "vector_field", "subterms", "__builtins__"}
 
 
 @dataclass(frozen=True)

@@ -202,3 +202,13 @@ def test_simulate_uses_fixed_constants_and_overrides():
     b = simulate(system, {"g": 1.0}, {"y": [0.0, 0.0]}, 2, 1.0)
     assert math.isclose(a[1, 0].item(), -G / 2, rel_tol=1e-14)
     assert math.isclose(b[1, 0].item(), -0.5, rel_tol=1e-14)
+
+
+def test_constants_named_as_the_generated_codes_own_names_roll_out():
+    # the NumPy field calls numpy.sin and fills `out`: a constant of either name was the module or the array
+    from fitode.codegen.source import compile_numpy
+    system = parse("x'' = -numpy*sin(x) - out*x'", free=["numpy", "out"])
+    lay = StateLayout.from_system(system)
+    traj = get_integrator("rk4")(lay).rollout(lambda y: compile_numpy(system)(y, 4.0, 0.5), np.array([[1.0, 0.0]]),
+                                              20, 0.1)
+    assert np.all(np.isfinite(traj)) and traj[0, 1, 0] < 1.0
