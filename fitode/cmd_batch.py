@@ -37,6 +37,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     d.add_argument("--fps", type=float, metavar="F", help="real frame rate")
     d.add_argument("--stride", metavar="K|auto", help="frame stride (default auto)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or chatter; only errors")
+    p.add_argument("--no-plots", action="store_true",
+                   help="no job draws its pictures: result.json, fit.json and the tables only (seconds saved per clip)")
 
 
 # each job runs single-threaded on its own core (and where the batch puts it): no --device, --threads
@@ -64,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     result = run_batch(args.manifest, args.out, executor=args.executor, workers=args.workers,
                        address=args.address, force=args.force, retry_failed=not args.skip_failed,
                        defaults=defaults_from_args(args), progress=not args.quiet and sys.stderr.isatty(),
-                       log=say, dry_run=args.dry_run)
+                       log=say, dry_run=args.dry_run, plots=not args.no_plots)
     if args.dry_run:
         return 0
     c = result.counts

@@ -46,6 +46,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                      "must not exist or be empty")
     out.add_argument("--quiet", action="store_true", help="no progress or chatter; the table is still printed")
     out.add_argument("--json", action="store_true", help="print result.json on stdout (human text goes to stderr)")
+    out.add_argument("--no-plots", action="store_true",
+                     help="no pictures: result.json, fit.json and the tables only (seconds saved per clip)")
 
 
 def observe_value(text: str) -> str | dict[str, str]:
@@ -95,4 +97,5 @@ def _run(args, const, init, say):
     if args.train_fraction is not None:
         fit["train_fraction"] = args.train_fraction
     return run_video(args.video, args.out, read=ReadOptions(**video_kwargs(args)), fit=fit,
-                     progress=not args.quiet and sys.stderr.isatty(), log=None if args.quiet else say)
+                     progress=not args.quiet and sys.stderr.isatty(), log=None if args.quiet else say,
+                     plots=not args.no_plots)

@@ -64,11 +64,12 @@ READ_OPTIONS = ("fps", "start", "end", "roi", "size", "color", "stride", "mask")
 
 
 def run_job(video: str | Path, out_dir: str | Path | None = None, *, progress: bool = False,
-            log: Callable[[str], None] | None = print, callback=None, **options) -> RunOutcome:
+            log: Callable[[str], None] | None = print, callback=None, plots: bool = True, **options) -> RunOutcome:
     """run_video with its options flat, as a batch manifest's row names them: the keywords of
     ReadOptions go to the reader, every other one to fitode.api.request (fitode.fit's keywords)."""
     read = ReadOptions(**{k: options.pop(k) for k in READ_OPTIONS if k in options})
-    return run_video(video, out_dir, read=read, fit=options, progress=progress, log=log, callback=callback)
+    return run_video(video, out_dir, read=read, fit=options, progress=progress, log=log, callback=callback,
+                     plots=plots)
 
 
 @dataclass
@@ -153,7 +154,7 @@ def fit_staged(reqs, staged: Staged, *, rate: float = 0.0, callback=None, progre
 
 def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: ReadOptions = ReadOptions(),
               fit: Mapping[str, Any], progress: bool = False, log: Callable[[str], None] | None = print,
-              callback=None) -> RunOutcome:
+              callback=None, plots: bool = True) -> RunOutcome:
     """Fit one video and write its output folder; see the module docstring.
 
     read: what to read of the video. fit: the keyword arguments of fitode.fit besides the frames
@@ -161,7 +162,8 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     training options). out_dir None makes a new folder fitode-runs/<video-stem>-<YYYYmmdd-HHMMSS>[-N]
     under the current directory; a given out_dir must not exist or be empty. log receives the
     human text (what was understood, per-run summaries, calibration, where files went); None
-    silences it. callback is called with every StepInfo.
+    silences it. callback is called with every StepInfo. plots False: no pictures (the numbers and
+    tables only; a batch of many clips saves the seconds each one's pictures cost).
     Raises FitodeError (one-line message) for any bad input; KeyboardInterrupt propagates after
     the partial folder is written (RunInterrupted, carrying the RunOutcome, when the trainer
     returned what it had).
@@ -193,12 +195,14 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     report = rep.base_report(video, clip, ode, spec, analysis, plan, req.train_fraction, folder, options, t0)
     rep.write_json(report, folder / "result.json")  # "running": even a hard kill leaves a marked folder
     plots_done: list[str] = []
-    from fitode import plots
+    from fitode import plots as plots_module
 
     comparison = None
     try:
         # inside the try: a signal while it is drawn still leaves the folder marked interrupted
-        _try_plot(plots.plot_frames, folder / "frames.png", clip.frames, clip.dt, t0=t0, plots_done=plots_done)
+        if plots:
+            _try_plot(plots_module.plot_frames, folder / "frames.png", clip.frames, clip.dt, t0=t0,
+                      plots_done=plots_done)
         result, req, plan, comparison = fit_staged(reqs, staged, rate=rate_std(read.fps), callback=recorder,
                                                    progress=progress, log=say)
         if comparison is not None and comparison.chosen:  # the report describes the candidate whose numbers it gives
@@ -210,13 +214,13 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
         if not (isinstance(exc, Stopped) and len(reqs) == 1):  # no fit finished (of a comparison: not all)
             stage = "training" if len(reqs) == 1 else "comparison"
             _write_partial(report, recorder, folder, "interrupted", f"interrupted during the {stage}",
-                           plots_done, stage=stage)
+                           plots_done, stage=stage, plots=plots)
             say(f"interrupted: partial results in {folder}")
             raise
         result = exc.result  # the fit finished: its estimates are kept (fitode.interrupted)
         source_measurement(result, clip)
     except FitodeError as exc:
-        _write_partial(report, recorder, folder, "failed", str(exc), plots_done)
+        _write_partial(report, recorder, folder, "failed", str(exc), plots_done, plots=plots)
         raise
 
     interrupted = bool(result.meta.get("interrupted"))
@@ -244,10 +248,11 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
     report["files"] = sorted(["result.json", "fit.json", *plots_done, *tables])
     rep.write_json(report, folder / "result.json")
     try:
-        reached("pictures")
-        report["warnings"] += _plots_for_result(folder, result, report, plots_done, t0)
-        warning = _try_plot(plot_track, folder / "track.png", result, clip, video, t0, plots_done=plots_done)
-        report["warnings"] += [warning] if warning else []
+        if plots:
+            reached("pictures")
+            report["warnings"] += _plots_for_result(folder, result, report, plots_done, t0)
+            warning = _try_plot(plot_track, folder / "track.png", result, clip, video, t0, plots_done=plots_done)
+            report["warnings"] += [warning] if warning else []
     except KeyboardInterrupt:
         interrupted = True
         if report["status"] != "interrupted":
@@ -454,10 +459,10 @@ class _Recorder:
 
 
 def _write_partial(report: dict, recorder: _Recorder, folder: Path, status: str, why: str,
-                   plots_done: list[str], stage: str | None = None) -> None:
+                   plots_done: list[str], stage: str | None = None, plots: bool = True) -> None:
     """Whatever a run that did not finish has: the per-step history and the last constants of each
     run, and an estimates.csv with no rows (no estimate was made)."""
-    from fitode import plots
+    from fitode import plots as plots_module
     from fitode import report as rep
     from fitode.tables import write_run_tables
     rows = recorder.rows()
@@ -473,8 +478,9 @@ def _write_partial(report: dict, recorder: _Recorder, folder: Path, status: str,
         report["stage"] = stage
     plots_done += write_run_tables(report, folder)
     if rows:
-        _try_plot(plots.plot_params, folder / "params.png", rows, {}, plots_done=plots_done)
-        _try_plot(plots.plot_loss, folder / "loss.png", rows, plots_done=plots_done)
+        if plots:
+            _try_plot(plots_module.plot_params, folder / "params.png", rows, {}, plots_done=plots_done)
+            _try_plot(plots_module.plot_loss, folder / "loss.png", rows, plots_done=plots_done)
         rep.write_json({"runs": rows}, folder / "history.json")
         plots_done.append("history.json")
     report["files"] = sorted(["result.json", *plots_done])

@@ -496,3 +496,16 @@ def test_unreachable_ray_address_fails_fast_and_writes_nothing(tmp_path, capsys)
     assert time.time() - t0 < 30
     assert "cannot reach a Ray cluster at 127.0.0.1:1" in capsys.readouterr().err
     assert not (tmp_path / "videos-results").exists()
+
+
+def test_no_plots_reaches_every_job_and_is_no_new_setting(tmp_path):
+    _video(tmp_path, "g1.json", gamma=0.5)
+    _video(tmp_path, "g2.json", gamma=0.7)
+    m = _csv(tmp_path, [f"g1.json,A,{EQ},0.5", f"g2.json,A,{EQ},0.7"])
+    out = tmp_path / "out"
+    run_batch(m, out, workers=1, runner=RUNNER, log=None, plots=False)
+    for name in ("001-g1", "002-g2"):
+        assert json.loads((out / name / "result.json").read_text())["settings"]["plots"] is False
+    (out / "calls.log").unlink()
+    run_batch(m, out, workers=1, runner=RUNNER, log=None)  # with pictures: the same settings, nothing to run
+    assert _calls(out) == []

@@ -238,3 +238,16 @@ def test_what_cannot_be_measured_fails_before_the_header_and_the_folder(tmp_path
     assert code == 2 and not out.exists()
     assert "angle observation" in captured.err and len(captured.err.strip().splitlines()) == 1
     assert "input:" not in captured.out + captured.err  # no header
+
+
+def test_no_plots_writes_the_numbers_and_no_picture(video, tmp_path, capsys):
+    code, _, err = run([video, "--eq", EQ, "--out", tmp_path / "plain", "--quiet", *TINY], capsys)
+    assert code == 0, err
+    code, _, err = run([video, "--eq", EQ, "--out", tmp_path / "bare", "--quiet", "--no-plots", *TINY], capsys)
+    assert code == 0, err
+    bare = json.loads((tmp_path / "bare" / "result.json").read_text())
+    plain = json.loads((tmp_path / "plain" / "result.json").read_text())
+    assert not list((tmp_path / "bare").glob("*.png")) and not [f for f in bare["files"] if f.endswith(".png")]
+    assert list((tmp_path / "plain").glob("*.png"))  # the same run with its pictures
+    assert {"result.json", "fit.json", "estimates.csv", "track.csv"} <= set(bare["files"])
+    assert bare["parameters"]["gamma"]["value"] == plain["parameters"]["gamma"]["value"]

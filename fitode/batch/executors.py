@@ -117,7 +117,7 @@ class LocalExecutor:
 
     def _isolated(self, tasks: list[Task], on_start: OnStart, on_done: OnDone) -> None:
         """Each task alone in its own process, up to `workers` at once, so a death names its job."""
-        pending = deque(Task(t.job, t.out_dir, t.runner, attempt=t.attempt + 1) for t in tasks)
+        pending = deque(Task(t.job, t.out_dir, t.runner, attempt=t.attempt + 1, plots=t.plots) for t in tasks)
         running: dict = {}  # sentinel -> (process, connection, task)
         try:
             while pending or running:

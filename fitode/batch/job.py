@@ -29,6 +29,7 @@ class Task:
     out_dir: Path
     runner: str = DEFAULT_RUNNER
     attempt: int = 1
+    plots: bool = True  # the job's pictures (a choice of output, outside the settings hash: same numbers)
 
 
 @dataclass
@@ -90,7 +91,7 @@ def execute_job(task: Task) -> JobOutcome:
         if Path(task.out_dir).exists():
             shutil.rmtree(task.out_dir)
         run = load_runner(task.runner)
-        outcome = run(job.video, task.out_dir, progress=False, log=None, **job.kwargs)
+        outcome = run(job.video, task.out_dir, progress=False, log=None, plots=task.plots, **job.kwargs)
         report = getattr(outcome, "report", None)
         if report is None:
             report = read_report(Path(task.out_dir))

@@ -72,6 +72,7 @@ CLI_ONLY = {
     "out": "the batch names each job's folder (the 'name' column) under its own --out",
     "quiet": "output only: a batch's workers print nothing of their own",
     "json": "output only: each job's result.json is in its folder",
+    "no_plots": "output only: set once for the batch by `fitode batch --no-plots`",
     "device": "set once for the batch by `fitode batch --device`, not per job",
     "threads": "set by the batch: each worker gets its share of the cores",
 }

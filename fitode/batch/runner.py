@@ -58,7 +58,7 @@ def run_batch(manifest: str | Path | Manifest, out: str | Path | None = None, *,
               workers: int | None = None, address: str | None = None, force: bool = False,
               retry_failed: bool = True, defaults: Mapping[str, Any] | None = None, progress: bool = False,
               log: Callable[[str], Any] | None = print, runner: str = DEFAULT_RUNNER,
-              dry_run: bool = False) -> BatchResult:
+              dry_run: bool = False, plots: bool = True) -> BatchResult:
     """Fit every video of a manifest; resumable.
 
     manifest: a .csv or .toml path (see fitode.batch.manifest) or a loaded Manifest.
@@ -68,7 +68,8 @@ def run_batch(manifest: str | Path | Manifest, out: str | Path | None = None, *,
     force: run every job again. retry_failed: run jobs that failed before with the same settings
         (the default; False keeps them failed). defaults: values for keys the manifest leaves unset.
     runner: "module:function" called as run_job(video, out_dir, progress=False, log=None, **kwargs).
-    dry_run: plan and report, run nothing, write nothing.
+    dry_run: plan and report, run nothing, write nothing. plots False: no job draws its pictures
+    (the same numbers; a job's settings hash does not cover it).
     """
     t0 = time.perf_counter()
     man = manifest if isinstance(manifest, Manifest) else load_manifest(manifest, defaults)
@@ -80,14 +81,14 @@ def run_batch(manifest: str | Path | Manifest, out: str | Path | None = None, *,
     lock = _claim(out_dir, man, dry_run)
     try:
         return _run(man, out_dir, say, exe, force=force, retry_failed=retry_failed, progress=progress,
-                    runner=runner, dry_run=dry_run, t0=t0)
+                    runner=runner, dry_run=dry_run, t0=t0, plots=plots)
     finally:
         if lock is not None:
             lock.close()
 
 
 def _run(man: Manifest, out_dir: Path, say, exe: Executor | None, *, force: bool, retry_failed: bool,
-         progress: bool, runner: str, dry_run: bool, t0: float) -> BatchResult:
+         progress: bool, runner: str, dry_run: bool, t0: float, plots: bool = True) -> BatchResult:
     rows: dict[str, SummaryRow] = {}
     to_run: list[Job] = []
     for job in man.jobs:
@@ -116,14 +117,15 @@ def _run(man: Manifest, out_dir: Path, say, exe: Executor | None, *, force: bool
     try:
         if hasattr(exe, "start") and to_run:
             exe.start()  # Ray: connect first, so the plan line can say how many CPUs the cluster has
-        return _execute(man, out_dir, say, exe, plan, rows, to_run, reused, progress, runner, t0)
+        return _execute(man, out_dir, say, exe, plan, rows, to_run, reused, progress, runner, t0, plots)
     finally:
         if hasattr(exe, "stop"):
             exe.stop()
 
 
 def _execute(man: Manifest, out_dir: Path, say, exe: Executor, plan: str, rows: dict[str, SummaryRow],
-             to_run: list[Job], reused: list[str], progress: bool, runner: str, t0: float) -> BatchResult:
+             to_run: list[Job], reused: list[str], progress: bool, runner: str, t0: float,
+             plots: bool = True) -> BatchResult:
     say(plan + (f" on {exe.describe()}" if to_run else "") + f"; out: {out_dir}")
 
     meta = {"manifest": str(man.path), "out": str(out_dir), "started": _now(),
@@ -145,7 +147,7 @@ def _execute(man: Manifest, out_dir: Path, say, exe: Executor, plan: str, rows: 
         write_summary(out_dir, ordered, {**meta, "updated": _now()})
         bar.finished(task.job.name, outcome.status)
 
-    tasks = [Task(job, out_dir / job.name, runner) for job in to_run]
+    tasks = [Task(job, out_dir / job.name, runner, plots=plots) for job in to_run]
     try:
         if tasks:
             exe.run(tasks, on_start, on_done)
