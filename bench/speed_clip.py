@@ -13,7 +13,8 @@ whole command (`python -m fitode CLIP ARGS --quiet`), its stages timed inside th
 - fit: the restarts (a measured path's direct fit, or the encoder's training) and the measurement's checks;
 - intervals: the bootstrap of every constant's interval;
 - assessment: the calibration where asked and the verdicts;
-- pictures: the plots (track.png, frames.png, latent.png, params.png, loss.png);
+- pictures: the plots (track.png, frames.png, latent.png; params.png and loss.png where an encoder
+  was trained);
 - the rest: what none of these holds (printing, result.json, the tables).
 
 Each pair runs --reps times alternating, so a busy machine slows both alike; the load average is
