@@ -1,7 +1,8 @@
 """coverage: does fitode keep its word? The 95% intervals and the verdicts on generated clips, counted.
 
 Every clip is generated with seeded random constants, noise, resolution and length, written to
-an mp4 and fitted as a user would (fitode.pipeline.run_job, every default, the scene's shipped
+an mp4 and fitted as a user would (fitode.pipeline.run_job, every default but the pictures, which
+nobody looks at here: plots=False, the same numbers; the scene's shipped
 equation file; bench/realistic.py's fit_video for the realistic scenes, calibrated with the true
 state at two frames where the constant depends on the latent's units, none within 3 frames of a
 bounce; the clips as they are filmed are scaled instead by the scene's ruler, as a user gives it: `--scale`
@@ -182,7 +183,8 @@ def _fit_oscillator(task: dict[str, Any]) -> dict[str, Any]:
         path = write_video(video, tmp / "oscillator.mp4")
         t0 = time.perf_counter()
         try:
-            outcome = run_job(path, tmp / "run", system="damped_oscillator", log=None, progress=False, **task["train"])
+            outcome = run_job(path, tmp / "run", system="damped_oscillator", log=None, progress=False, plots=False,
+                             **task["train"])
         except FitodeError as exc:
             out.update(status="failed", error=str(exc), estimate=math.nan)
             return out

@@ -44,7 +44,7 @@ def fit_clip(task: dict[str, Any], quick: bool = False) -> dict[str, Any]:
     try:
         t0 = time.perf_counter()
         report = run_job(write_video(video, tmp / "oscillator.mp4"), tmp / "run", system="damped_oscillator",
-                         log=None, progress=False).report
+                         log=None, progress=False, plots=False).report
         row: dict[str, Any] = {"seed": task["seed"], "frames": task["n_frames"], "dt": task["dt"],
                                "omega_dt": math.sqrt(task["constants"]["g0"]) * task["dt"],
                                "substeps": report["settings"].get("substeps"), "fit_s": time.perf_counter() - t0}
