@@ -168,3 +168,19 @@ def test_a_hand_before_the_slide_leaves_the_fit_trusted():
     assert sum(first <= m < last for m in mended) <= MENDED_MAX * (last - first)
     assert res.values["a"] == pytest.approx(phys["a"], rel=0.03)
     assert res.verdicts["a"]["verdict"] == "trusted", res.checks["findings"]
+
+
+def test_a_constant_the_windows_drove_onto_its_bound_starts_the_whole_fit_from_the_restarts_value():
+    from fitode.eqparse import ParamSpec
+    from fitode.train.direct import off_bounds
+    from fitode.train.trajectory import TrajectoryFit
+    lead = TrajectoryFit({"L": 1.0889, "zeta": 1.1e-24}, {"L": 0.01, "zeta": 0.01}, 0.04, np.zeros((5, 1)), True)
+    params = {"L": ParamSpec(init=1.0, min=0.0), "zeta": ParamSpec(init=0.1, min=0.0)}
+    moved = off_bounds(lead, {"L": 2.5, "zeta": 0.02}, params)
+    # zeta sat on its bound 0, where exp(u) has no slope: it starts again from the restart's 0.02
+    assert moved.values == {"L": 1.0889, "zeta": 0.02} and lead.values["zeta"] == 1.1e-24
+    assert off_bounds(TrajectoryFit({"L": 1.0889, "zeta": 1e-4}, {}, 0.04, np.zeros((5, 1)), True),
+                      {"L": 2.5, "zeta": 0.02}, params).values["zeta"] == 1e-4  # small, yet off its bound
+    upper = {"e": ParamSpec(init=0.5, min=0.0, max=1.0)}
+    assert off_bounds(TrajectoryFit({"e": 1.0 - 1e-12}, {}, 0.1, np.zeros((5, 1)), True), {"e": 0.7},
+                      upper).values == {"e": 0.7}

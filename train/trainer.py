@@ -33,7 +33,7 @@ from .result import Estimate, FitResult, RunRecord
 from .score import dominant_period, separation_score
 from .selection import select_runs, selection
 from .starts import CANDIDATES, data_starts
-from .direct import full_fit, fit_path, fitted_path, orientation, screen
+from .direct import fit_path, fitted_path, full_fit, off_bounds, orientation, screen
 from .steps import settle_substeps
 from .joint import disagreement, fit_pieces, other_motions
 from .pieces import Pieces, find_pieces
@@ -453,6 +453,7 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
         first = screen(system, params, latent[:n], plan.dt, warm, gauge=gauges,
                        integrator=config.integrator, substeps=config.substeps)
     if first is not None:
+        first = off_bounds(first, warm, params)
         warm.update({k: first.values[k] for k in system.learnable})
 
     def fit(a: int, b: int):
