@@ -84,12 +84,6 @@ def _plots_for_result(folder: Path, result, report, plots_done: list[str], t0: f
     import numpy as np
 
     from fitode import plots
-    runs = [asdict(r) for r in result.runs]
-    for r in runs:
-        r["selected"] = r["index"] in result.selected
-        r["best"] = r["index"] == result.best
-    estimates = {k: v["value"] for k, v in report["parameters"].items()}
-    units = {k: v.get("unit") for k, v in report["parameters"].items()}
     latent, rollout, ylabels = result.latent, result.rollout, plots.state_labels(result)
     if result.calibration is not None:
         latent, rollout = np.asarray(result.calibration["latent"]), np.asarray(result.calibration["rollout"])
@@ -101,6 +95,12 @@ def _plots_for_result(folder: Path, result, report, plots_done: list[str], t0: f
                   angles=plots.angle_states(result), measured=measured, plots_done=plots_done),
     ]
     if not measured:  # a path fitted directly has no training: its "history" is a solver's two end points
+        runs = [asdict(r) for r in result.runs]
+        for r in runs:
+            r["selected"] = r["index"] in result.selected
+            r["best"] = r["index"] == result.best
+        estimates = {k: v["value"] for k, v in report["parameters"].items()}
+        units = {k: v.get("unit") for k, v in report["parameters"].items()}
         shown = plots.params_view(result, report["parameters"])
         warnings += [_try_plot(plots.plot_params, folder / "params.png", runs, estimates, units=units, **shown,
                                plots_done=plots_done),

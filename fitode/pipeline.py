@@ -119,7 +119,6 @@ def measure_clip(reqs, video, read: ReadOptions, *, progress: bool = False, dt: 
 def measure_array(reqs, frames, dt: float, time_offset: float = 0.0) -> Staged:
     """plan -> measure for frames given as an array (their pixels are the source's)."""
     from fitode import api
-
     from fitode.video.track import track_array
 
     x = api.as_frames(frames)
@@ -459,7 +458,7 @@ class _Recorder:
 
 
 def _write_partial(report: dict, recorder: _Recorder, folder: Path, status: str, why: str,
-                   plots_done: list[str], stage: str | None = None, plots: bool = True) -> None:
+                   plots_done: list[str], plots: bool, stage: str | None = None) -> None:
     """Whatever a run that did not finish has: the per-step history and the last constants of each
     run, and an estimates.csv with no rows (no estimate was made)."""
     from fitode import plots as plots_module

@@ -88,7 +88,7 @@ def run_batch(manifest: str | Path | Manifest, out: str | Path | None = None, *,
 
 
 def _run(man: Manifest, out_dir: Path, say, exe: Executor | None, *, force: bool, retry_failed: bool,
-         progress: bool, runner: str, dry_run: bool, t0: float, plots: bool = True) -> BatchResult:
+         progress: bool, runner: str, dry_run: bool, t0: float, plots: bool) -> BatchResult:
     rows: dict[str, SummaryRow] = {}
     to_run: list[Job] = []
     for job in man.jobs:
@@ -125,7 +125,7 @@ def _run(man: Manifest, out_dir: Path, say, exe: Executor | None, *, force: bool
 
 def _execute(man: Manifest, out_dir: Path, say, exe: Executor, plan: str, rows: dict[str, SummaryRow],
              to_run: list[Job], reused: list[str], progress: bool, runner: str, t0: float,
-             plots: bool = True) -> BatchResult:
+             plots: bool) -> BatchResult:
     say(plan + (f" on {exe.describe()}" if to_run else "") + f"; out: {out_dir}")
 
     meta = {"manifest": str(man.path), "out": str(out_dir), "started": _now(),
