@@ -133,6 +133,25 @@ def test_auto_reads_a_back_and_forth_straight_path_along_its_line_for_an_unnamed
                           PositionObservation)
 
 
+def _flat_throw(held=80, flight=54, rest=104, angle_deg=17.0, span=120.0):
+    """A ball's path (T, 2) held at the launch, thrown flat across the view (a parabola that bows
+    span tan(angle) / 4 pixels, y down) and resting where it lands, as a 240 fps clip holds it."""
+    s = np.clip((np.arange(held + flight + rest) - held) / (flight - 1), 0, 1)
+    top = span * np.tan(np.radians(angle_deg)) / 4
+    return np.column_stack([20 + span * s, 100 - 4 * top * s * (1 - s)])
+
+
+def test_a_flat_throw_between_rests_is_read_as_its_height_not_as_a_swing():
+    # its rests bring its rank correlation with time under ONE_WAY and its parabola fits a circle:
+    # it was read as an angle about a centre far below, and g came out 0.015 for 23 (aside clip)
+    path = _flat_throw()
+    frames = torch.from_numpy(_blob_clip([path], [3.0])[:, None] / 255.0).float()
+    picked = resolve_observation(None, parse("y'' = -g"), frames, track=Track(path, 28.0, 1, "generated"))
+    assert isinstance(picked, PositionObservation) and "one run of its path covers 100%" in picked.reason
+    # nor is a parabola the "straight line" of a slide named y
+    assert picked.prepare(frames, fit_frames=len(frames)).hint is None
+
+
 @pytest.mark.parametrize("tilt, said", [(6.0, True), (1.0, False)])
 def test_a_state_named_along_an_axis_is_read_so_and_a_tilted_line_is_said(tilt, said):
     path = _cart(tilt_deg=tilt)

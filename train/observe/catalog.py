@@ -66,9 +66,12 @@ def auto_rule(power_symmetric: bool) -> list[str]:
               "and zero the equation leaves free (s'' = -a) moves back and forth along a straight line (read along "
               "it, positive the way it first moves, or the other way where the equation's constants then come out "
               "positive): " + MODELS["position"].line)
+    swing = ("auto -> angle, before the names, where a single state's path goes back and forth along an arc that "
+             "clearly bends about a centre (a pendulum, whatever its state is named; a path that runs one way, as a "
+             "throw between its launch and its landing, is no swing): " + MODELS["angle"].line)
     if not power_symmetric:
-        return [level, moving, "elsewhere any, as no constant follows a bend of the latent: " + MODELS["any"].line]
-    return [level, moving, "brightness where the change stays in place (it brightens or dims): " + MODELS["brightness"].line,
+        return [level, swing, moving, "elsewhere any, as no constant follows a bend of the latent: " + MODELS["any"].line]
+    return [level, swing, moving, "brightness where the change stays in place (it brightens or dims): " + MODELS["brightness"].line,
             "where it moves back and forth: any, with the linear encoder, which removes the bend only"]
 
 

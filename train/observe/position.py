@@ -116,11 +116,16 @@ def _weak_axes(xy: torch.Tensor, axes: list[str]) -> list[int]:
     return [i for i, axis in enumerate(axes) if float(columns[axis].std()) < BARELY * spread]
 
 
+# the advice says "a straight line" only of a path a third as wide as the auto choice's STRAIGHT
+# allows: a flat throw's parabola (17 degrees: 0.024 of its travel) is no slide (a generated cart: 0.0004)
+HINT_STRAIGHT = STRAIGHT / 3
+
+
 def _tilt_hint(xy: torch.Tensor, states: tuple[str, ...], axes: list[str]) -> str | None:
     """The advice for a single state named along an image axis whose path runs along a straight
     line tilted from that axis so far that the path along the line is TILT longer (a cart on an
     incline named x): the state is read along its axis, as named, and what that leaves out is said."""
-    if len(states) != 1 or straightness(xy) >= STRAIGHT:
+    if len(states) != 1 or straightness(xy) >= HINT_STRAIGHT:
         return None
     direction, _ = line_of_motion(xy.double())
     along = abs(float(direction[0] if axes[0] == "x" else direction[1]))
