@@ -22,6 +22,7 @@ with each end clicked off by a pixel, realistic.clicked_ruler). The cases:
 | cart            | bumper_cart, its ruler clicked: 3-5 bounces | a, restitution, bounces, noise, size     |
 | bounce          | bouncing_ball, its ruler clicked: 2-4 bounces | g, restitution, bounces, noise, size   |
 | block-rest      | sliding_block at 240 fps, rests each end, its ruler clicked | alpha, rests, noise, size |
+| throw           | throw at 240 fps, held, flying, at rest, its ruler clicked | g, angle, range, ball, rests, noise, size |
 
 Per clip: the truth, the estimate, its 95% interval, its verdict. Printed: the coverage of the
 95% intervals (how often they hold the truth), the false-trust rate (TRUSTED and outside its 99%
@@ -59,11 +60,15 @@ import realistic  # noqa: E402
 # clips as they are filmed (train/pieces.py): drawn from a stream of their own, after the others, so that
 # the list of the cases before them stays what it was
 PIECES_CASES = ("held-pendulum", "cart", "bounce", "block-rest")
-CASES = ("oscillator", "pendulum-small", "pendulum-large", "fall", "drain", "led", "led-linear", "spring") + PIECES_CASES
+# drawn from a third stream, after the pieces, so that both lists before them stay what they were
+LATER_CASES = ("throw",)
+CASES = ("oscillator", "pendulum-small", "pendulum-large", "fall", "drain", "led", "led-linear", "spring") + PIECES_CASES \
+    + LATER_CASES
 SPRING = {"system": "spring", "quantity": "w2", "unit": "1/s^2"}
 SPECS = {"spring": SPRING, "held-pendulum": {"system": "pendulum", "quantity": "L", "unit": "m"},
          "cart": {"system": "incline_cart", "quantity": "a", "unit": "m/s^2"},
-         "bounce": {"system": "throw", "quantity": "g", "unit": "m/s^2"}}
+         "bounce": {"system": "throw", "quantity": "g", "unit": "m/s^2"},
+         "throw": {"system": "throw", "quantity": "g", "unit": "m/s^2"}}
 PER_CASE = 8
 Z99_OVER_Z95 = 2.5758 / 1.9600
 TRUST_OFF = 0.05
@@ -89,7 +94,7 @@ def clip_list(cases: list[str], seed: int, per_case: int = PER_CASE) -> list[dic
     cases = [c for c in cases if c not in missing_cases()]
     out = []
     for i in range(per_case):
-        for case in [c for c in cases if c not in PIECES_CASES]:
+        for case in [c for c in cases if c not in PIECES_CASES + LATER_CASES]:
             size = SIZES[int(rng.integers(len(SIZES)))]
             noise = float(rng.uniform(0.5, 2.0))
             task: dict[str, Any] = {"case": case, "seed": seed * 1000 + len(out), "train": {}, "keep": None,
@@ -116,6 +121,19 @@ def clip_list(cases: list[str], seed: int, per_case: int = PER_CASE) -> list[dic
                     "scene_kwargs": {**kwargs, "size": size, "noise": float(rng.uniform(0.5, 2.0))}}
             if case in SPECS:
                 task["spec"] = SPECS[case]
+            out.append(task)
+    rng = np.random.default_rng([seed, 33])
+    for i in range(per_case):
+        for j, case in enumerate(c for c in cases if c in LATER_CASES):
+            size = SIZES[int(rng.integers(len(SIZES)))]
+            # a ball 3 to 7 cm across thrown at 15-75 degrees over 0.6-3 m, filmed at 240 fps from its
+            # hold in the hand to its rest where it lands, the frames stored at 240
+            kwargs = {"angle": float(rng.uniform(15.0, 75.0)), "range": float(rng.uniform(0.6, 3.0)),
+                      "radius": float(rng.uniform(0.015, 0.035)), "rest_before": float(rng.uniform(0.05, 0.5)),
+                      "rest_after": float(rng.uniform(0.05, 0.5)), "fps": 240.0}
+            task = {"case": case, "seed": seed * 1000 + 800 + len(LATER_CASES) * i + j, "train": {}, "keep": None,
+                    "calibrate": True, "ruler": True, "scene": "throw", "setting": float(rng.uniform(1.6, 25.0)),
+                    "scene_kwargs": {**kwargs, "size": size, "noise": float(rng.uniform(0.5, 2.0))}, "spec": SPECS[case]}
             out.append(task)
     return out
 
