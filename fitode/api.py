@@ -71,7 +71,7 @@ def request(*, eq: str | None = None, system: str | OdeSystem | None = None, eq_
         raise ConfigError("give the prior as prior=(mean, std), not as a training option")
     config = TrainConfig.from_options(options, prior=tuple(prior) if prior is not None else tuple(spec_prior))
     if not ode.learnable:
-        raise FitodeError("the equation has no learnable constant to estimate (every name is fixed)")
+        raise FitodeError(_nothing_to_learn(ode))
     _check_init(ode, init, spec_params)
     if isinstance(train_fraction, bool) or not isinstance(train_fraction, (int, float)) or not 0 < train_fraction <= 1:
         raise ConfigError(f"train_fraction must be in (0, 1], got {train_fraction!r}")
@@ -236,6 +236,23 @@ def _calibrate(result: FitResult, req: FitRequest, analysis, time_offset: float)
                           "rollout": cal.rollout.tolist(), "time_offset": time_offset,
                           "ylabels": cal.ylabels(result.states)}
     return cal.converted_names(), cal.findings(req.params)
+
+
+def _nothing_to_learn(ode) -> str:
+    """The one line for an equation whose every constant is fixed, with how to estimate one: a
+    known constant (g) is fixed at its value unless freed, and a user who writes y'' = -g for a
+    fall wants g measured more often than not."""
+    from fitode.eqparse import KNOWN_CONSTANTS
+
+    known = [n for n in ode.fixed if n in KNOWN_CONSTANTS and ode.fixed[n] == KNOWN_CONSTANTS[n]]
+    if not ode.fixed:
+        return "the equation has no constant to estimate: write one into it (y'' = -g, x'' = -k*x)"
+    if known:
+        n = known[0]
+        return (f"the equation has no constant to estimate: {n} is the known {KNOWN_CONSTANTS[n]:g}, fixed unless freed; "
+                f"--free {n} (fitode.fit(..., free=['{n}'])) estimates it")
+    return (f"the equation has no constant to estimate: every name is fixed ({', '.join(sorted(ode.fixed))}, by --const "
+            "or the equation file); leave one unfixed to estimate it")
 
 
 def _check_init(ode: OdeSystem, init: Mapping[str, float] | None, params: Mapping[str, ParamSpec]) -> None:

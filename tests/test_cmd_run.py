@@ -120,6 +120,18 @@ def test_error_paths_exit_2_with_one_line(case, video, short_video, tmp_path, ca
     assert not (tmp_path / "fitode-runs").exists()  # nothing was started
 
 
+@pytest.mark.parametrize("eq, extra, words", [
+    ("y'' = -g", [], "g is the known 9.80665, fixed unless freed; --free g"),
+    ("I' = -gamma*I", ["--const", "gamma=2"], "every name is fixed (gamma, by --const"),
+    ("y'' = -y", [], "no constant to estimate: write one into it"),
+])
+def test_an_equation_with_nothing_to_estimate_says_how_to_estimate_one(eq, extra, words, video, tmp_path, capsys,
+                                                                       monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run([video, "--eq", eq, *extra], capsys)
+    assert code == 2 and out == "" and err.count("\n") == 1 and words in err, err
+
+
 @pytest.mark.parametrize("where", ["file/sub", "/proc/fitode-out"])
 def test_an_unwritable_out_fails_before_the_video_is_read(where, video, tmp_path, capsys, monkeypatch):
     import fitode.pipeline
