@@ -578,17 +578,18 @@ def _find(frame, template, weight, ref, guess, reach, angle=0.0):
         x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
     if x1 - x0 < tw or y1 - y0 < th:
         return None
+    # the predicted place is refined first: where something passes behind the object, the
+    # correlation's peak may lie on that instead, and the object where it should be still scores
+    # best; where it scores well, the correlation over the window is not needed
+    best = _refine(frame, template, weight, ref, np.asarray(guess, dtype=np.float64), angle) if guess is not None else None
+    if best is not None and best[2] >= GOOD:
+        return best
     window = frame[y0:y1, x0:x1]
     tm = _turned(template, ref, angle) if abs(angle) > 0.02 else template
     wm = _turned(weight, ref, angle) if abs(angle) > 0.02 else weight
     corr, f = _correlation(window, tm, wm)
     # the correlation's best peak is refined and scored; where that is poor, the next best peaks
     # too (a dark leg correlates with a can's edges better than the can half hidden behind it)
-    # the predicted place is refined too: where something passes behind the object, the
-    # correlation's peak may lie on that instead, and the object where it should be still scores best
-    best = _refine(frame, template, weight, ref, np.asarray(guess, dtype=np.float64), angle) if guess is not None else None
-    if best is not None and best[2] >= GOOD:
-        return best
     spread = max(3, min(th, tw) // 2) // f
     for _ in range(PEAKS):
         j = int(np.argmax(corr))

@@ -352,7 +352,7 @@ def _candidates(frame: np.ndarray, background: np.ndarray, noise: float) -> list
     out: list[tuple[float, float, float, float]] = []
     levels: dict[int, float] = {}  # the frame's noise level per shrink, measured once (its medians cost)
     for _ in range(CANDIDATES):
-        found = _measure_one(change, noise, levels=levels)
+        found = _measure_one(change, noise, levels)
         if found is None or (out and found[3] < WEAKEST * out[0][3]):
             break
         out.append(found[:4])
@@ -378,21 +378,24 @@ def _locate_level(small: np.ndarray, noise: float, k: int) -> float:
     return max(level, middle + NOISE_SIGMAS * max(spread, 0.5))
 
 
-def _measure_one(change: np.ndarray, noise: float, k: int | None = None,
-                 levels: dict[int, float] | None = None) -> tuple[float, float, float, float, tuple[int, int, int, int]] | None:
+def _measure_one(change: np.ndarray, noise: float,
+                 levels: dict[int, float]) -> tuple[float, float, float, float, tuple[int, int, int, int]] | None:
     """The strongest change's centroid (x, y), area, mass (its change over the noise, summed) and box,
-    its region located on the change shrunk by k (LOCATE where the frame allows); where nothing
-    stands out there, looked for again at half that shrink (a ball two pixels across that straddles
-    four blocks leaves a quarter of its change in each). levels: the frame's level per shrink
+    its region located on the change shrunk by LOCATE where the frame allows; where nothing stands
+    out there, looked for again at half that shrink (a ball two pixels across that straddles four
+    blocks leaves a quarter of its change in each). levels: the frame's level per shrink
     (_locate_level), filled on first need: what later candidates of the same frame compare against."""
+    k = LOCATE if min(change.shape) >= 16 * LOCATE else 1
+    found = _measure_at(change, noise, k, levels)
+    return found if found is not None or k == 1 else _measure_at(change, noise, k // 2, levels)
+
+
+def _measure_at(change: np.ndarray, noise: float, k: int,
+                levels: dict[int, float]) -> tuple[float, float, float, float, tuple[int, int, int, int]] | None:
+    """_measure_one with the region located on the change shrunk by k."""
     h, w = change.shape
-    if k is None:
-        k = LOCATE if min(h, w) >= 16 * LOCATE else 1
-        found = _measure_one(change, noise, k, levels)
-        return found if found is not None or k == 1 else _measure_one(change, noise, k // 2, levels)
     small = cv2.resize(change[:h - h % k, :w - w % k], (w // k, h // k), interpolation=cv2.INTER_AREA) if k > 1 else change
     peak = float(small.max())
-    levels = {} if levels is None else levels
     if k not in levels:
         levels[k] = _locate_level(small, noise, k)
     low = levels[k]
