@@ -70,7 +70,8 @@ ENDS = {"stop": "comes to rest", "lost": "leaves the trajectory", "gone": "leave
 @dataclass
 class Event:
     """What happens at a frame: hold, release, bounce, stop, moved (by something else), lost (the
-    path leaves the trajectory), gone (the object leaves the view: the reader's track loses it)."""
+    path leaves the trajectory), gone (the object leaves the view: the reader's track loses it),
+    enter (the object comes into the view: the first piece starts where it is whole in it)."""
 
     frame: int
     kind: str
@@ -107,6 +108,8 @@ class Pieces:
         words: list[str] = []
         kinds = [e.kind for e in self.events]
         hold = next((e for e in self.events if e.kind in ("hold", "moved")), None)
+        if any(e.kind == "enter" for e in self.events):
+            words.append("enters the view")
         if hold is not None:
             words.append(("held still until " if hold.kind == "hold" else
                           "moved by something other than the equation (a hand?) until ") + t(hold.frame))
@@ -244,13 +247,16 @@ def _at_zero(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray | None], *,
-                min_len: int = MIN_SEED, unread: np.ndarray | None = None, unseen: np.ndarray | None = None) -> Pieces:
+                min_len: int = MIN_SEED, unread: np.ndarray | None = None, unseen: np.ndarray | None = None,
+                enters: bool = False, leaves: bool = False) -> Pieces:
     """Every stretch of the path x (T, k) that one trajectory explains (see the module docstring).
     fit(a, b): the residual of one trajectory fitted to frames [a, b), or None, as find_stretch's.
     unread: True for the frames the reader did not see the object in (read from their neighbours):
     those next to an impact belong to it, not to a piece. unseen: True for the frames the reader's
     track lost the object in: a motion that ends where most of the frames after it are unseen
-    leaves the view there."""
+    leaves the view there. enters, leaves: the object enters the view at x's first frame, leaves it
+    after its last (the frames before the first piece are it coming into view, not a hold to be
+    released from; those after the last, it going out of view, not a stop)."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     T = len(x)
     noise_all = noise_level(x)
@@ -288,7 +294,7 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
         keep = [i for i, v in enumerate(travel) if v >= HOLD_SHARE * max(travel) or 0 < i < len(spans) - 1]
         spans = [spans[i] for i in keep]
     events: list[Event] = []
-    if spans and (spans[0][0] > 0 or rest[0]):
+    if spans and not enters and (spans[0][0] > 0 or rest[0]):
         # a release is a start: the motion leaves the held place from rest; the search may have
         # grown the first piece into the hold (a fall from rest is one trajectory with it, nearly),
         # or stopped short of the release
@@ -299,7 +305,9 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
             spans[0] = (r, b)
     if spans:
         first = spans[0][0]
-        if first > 0:
+        if enters:
+            events.append(Event(first, "enter"))
+        elif first > 0:
             # still: at rest over most of what came before, or, a hold shorter than a rest's window
             # (a throw held 7 frames at 60 fps), flat over the frames the release was read from
             still = rest[:first].mean() > 0.5 or _flat(x[max(first - _release_window(dt), 0):first], noise_all)
@@ -309,7 +317,9 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
             hit = next((c for c in cuts if b - 1 <= c[0] and c[1] <= a + 1), None)
             events.append(Event((hit[0] + hit[1]) // 2 if hit else a, "bounce" if hit else "lost"))
         last = spans[-1][1]
-        if last < T:
+        if leaves:
+            events.append(Event(last, "gone"))
+        elif last < T:
             # (a landing whose rest the clip ends too soon to show, 6 frames at 60 fps, is a stop)
             stop = rest[last:].mean() > 0.5 or (T - last <= _release_window(dt) and _flat(x[last:], noise_all))
             after = None if unseen is None else np.asarray(unseen, dtype=bool)[last:last + _release_window(dt)]

@@ -476,7 +476,9 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
             unread[[i for i in mended if i < n]] = True
             track = getattr(plan.observation, "track", None)
             unseen = np.isnan(track.xy[:n, 0]) if track is not None and len(track) >= n else None
-            pieces = find_pieces(latent[:n], plan.dt, fit, unread=unread, unseen=unseen)
+            pieces = find_pieces(latent[:n], plan.dt, fit, unread=unread, unseen=unseen,
+                                 enters=bool(getattr(track, "enters", False)),
+                                 leaves=bool(getattr(track, "leaves", False)) and len(track) <= n)
             if len(pieces.spans) > 1 and plan.observation.measured:
                 pieces = _same_motion(latent[:n], pieces, plan, warm)
             found = _longest(latent[:n], pieces, plan.dt) if pieces.spans else find_stretch(latent[:n], plan.dt, fit)
@@ -507,12 +509,14 @@ def _longest(x: np.ndarray, pieces: Pieces, dt: float) -> Stretch:
     a, b = max(pieces.spans, key=lambda s: float(np.ptp(x[s[0]:s[1]], axis=0).max()))
     at = {e.frame: e.kind for e in pieces.events}
     ends = {"stop": f"the motion stops at {b * dt:.3g} s"}
-    why_start = ("from the clip's first frame" if a == 0 else
+    why_start = (f"the object enters the view, from {a * dt:.3g} s" if at.get(a) == "enter" else
+                 "from the clip's first frame" if a == 0 else
                  f"the motion starts at {a * dt:.3g} s (released: held before)" if at.get(a) == "release" else
                  f"after a bounce, from {a * dt:.3g} s" if a != pieces.spans[0][0] else
                  f"before {a * dt:.3g} s the path does not follow one trajectory of the equation")
     bounce = next((e for e in pieces.events if e.kind == "bounce" and e.frame >= b - 2), None)
-    why_end = ("to the clip's last frame" if b >= len(x) else ends["stop"] if at.get(b) == "stop" else
+    why_end = (f"the object leaves the view at {b * dt:.3g} s" if at.get(b) == "gone" else
+               "to the clip's last frame" if b >= len(x) else ends["stop"] if at.get(b) == "stop" else
                f"a bounce at {bounce.frame * dt:.3g} s" if bounce is not None and bounce.frame <= b + 3 else
                f"from {b * dt:.3g} s the path leaves one trajectory of the equation")
     return Stretch(a, b, why_start, why_end, pieces.noise)

@@ -31,6 +31,10 @@ class Track:
     followed: bool = False
     # xy is a water line, the moving end of a band of change (fitode.video.waterline), not a centroid
     line: bool = False
+    # the object enters the view at the first frame, leaves it after the last (the frames were
+    # read where it is in view: fitode.pipeline.in_view), so no hold before nor rest after
+    enters: bool = False
+    leaves: bool = False
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])
@@ -52,10 +56,22 @@ class Track:
             xy[~seen, j] = np.interp(t[~seen], t[seen], xy[seen, j])
         return xy
 
+    def in_view(self, gap: int) -> tuple[int, int]:
+        """[first, last + 1): the frames where the object is in view (a puck that slides in from
+        the edge and out again is seen only in between): of the runs of seen frames no more than
+        `gap` frames apart, the one with the most (a flicker of noise seen long after the object
+        left is not it); (0, 0) where it never was."""
+        seen = np.flatnonzero(~np.isnan(self.xy[:, 0]))
+        if not len(seen):
+            return 0, 0
+        runs = np.split(seen, np.flatnonzero(np.diff(seen) > gap) + 1)
+        best = max(runs, key=len)
+        return int(best[0]), int(best[-1]) + 1
+
     def head(self, n: int) -> "Track":
         """The first n frames (a trimmed or strided clip's track follows its frames)."""
         return Track(self.xy[:n], self.area, self.factor, self.note, tuple(p[:n] for p in self.objects), self.followed,
-                     self.line)
+                     self.line, self.enters, self.leaves and n >= len(self))
 
     def object(self, k: int) -> "Track":
         """The track of the k-th moving object from the left (1-based); ConfigError where fewer
