@@ -11,7 +11,7 @@ import torch
 
 import fitode
 from fitode.train.observe.tracking import runs_one_way
-from fitode.train.stretch import find_stretch, one_way_runs
+from fitode.train.stretch import _settled, at_rest, find_stretch, noise_level, one_way_runs, rest_window
 from fitode.video.track import follow
 
 from test_observe_plugins import FAST, PixelTracker, _frames
@@ -128,3 +128,38 @@ def test_a_clean_drain_that_never_rests_is_not_cut():
     stretch = res.meta["stretch"]
     assert (stretch["start_frame"], stretch["end_frame"]) == (0, len(t)), stretch
     assert res.values["k"] == pytest.approx(k, rel=0.01)
+
+
+def _landing(drift=0.02, seed=0):
+    """A throw's height filmed at 240 fps, in pixels: held 80 frames, 48 frames of flight, at rest
+    80 frames where it lands; read to 0.006 px from frame to frame, and at rest wandering by
+    `drift` px either way in a codec's slow noise (over some 30 frames)."""
+    rng = np.random.default_rng(seed)
+    dt = 1 / 240
+    t = np.arange(48) * dt
+    flight = 2.0 + 250.0 * t - 0.5 * 10400.0 * t ** 2  # lands 1 px under its launch
+    x = np.concatenate([np.zeros(80), flight[:-1], np.full(81, flight[-1])])
+    frames = np.arange(len(x))
+    wander = drift * np.sin(2 * np.pi * frames / 31 + rng.uniform(0, 2 * np.pi))
+    return x + 0.006 * rng.standard_normal(len(x)) + np.where(frames >= 127, wander, 0.0), dt
+
+
+@pytest.mark.parametrize("drift", [0.0, 0.02, 0.05])
+def test_a_ball_at_rest_where_it_lands_is_at_rest_though_it_wanders_more_than_its_noise(drift):
+    # 0.02 px of wander is 7 spreads of its frame-to-frame noise over a rest window: no rest by
+    # REST_SIGMAS alone, and the stretch grew from the flight into 35 frames of it (g 0.13 for 19.2)
+    x, dt = _landing(drift)
+    rest = at_rest(x[:, None], dt, noise_level(x[:, None]))
+    assert rest[:75].all() and rest[135:].all() and not rest[82:125].any()
+    found = find_stretch(x[:, None], dt, _parabola_fit(np.arange(len(x)) * dt, x))
+    assert 76 <= found.start <= 81 and 125 <= found.end <= 129, found
+
+
+def test_a_motion_that_slows_smoothly_has_no_settled_end():
+    # a drain's level and a decay slow down as they end: as slow just before their last frames
+    # as in them, so no end of theirs is a rest, however little it moves
+    t = np.arange(600) * 0.05
+    drain = (1.0 - 0.06 * t / 2) ** 2 + 1e-5 * np.random.default_rng(1).standard_normal(len(t))
+    decay = np.exp(-0.25 * t) + 1e-5 * np.random.default_rng(2).standard_normal(len(t))
+    for x in (drain, decay):
+        assert _settled(x[:, None], rest_window(0.05)) == (0, 0)

@@ -45,6 +45,8 @@ RUN_SLACK = 0.02  # a one-way run may turn back by this share of the path's trav
 RUN_JUMP = 0.2    # ... and breaks at a step longer than this share of it
 MAIN_RUN = 0.5    # a one-way run over this share of the travel is the motion: one seed is its middle
 MAIN_SLACK = 0.0075  # ... grown while one trajectory misses the new frames by at most this share of the travel
+SETTLED = 0.01    # an end of the clip at least two rest windows long that stays within this share of the
+SETTLED_SPEED = 0.05  # travel is a rest too, where it moves at most this share of the speed just before it
 HELD_SHARE = 0.25  # a path that never rests is cut by the search only where what it leaves out before the
                    # stretch travels less than this share of the stretch (a hand that holds it, nearly still)
 
@@ -97,6 +99,9 @@ def at_rest(x: np.ndarray, dt: float, noise: float) -> np.ndarray:
     still = span <= REST_SIGMAS * noise
     for i in np.flatnonzero(still):
         rest[i:i + w] = True
+    head, tail = _settled(x, w)
+    rest[:head] = True
+    rest[T - tail:] = True
     # only a stillness that opens or closes the clip is a rest (before a release, after a stop): a
     # swing's turning points are still for a few frames too (the real ornament was cut to its last
     # 2 s, L +1.9%), and a motion that pauses and goes on is still one clip's motion
@@ -104,6 +109,36 @@ def at_rest(x: np.ndarray, dt: float, noise: float) -> np.ndarray:
     if len(inner):
         rest[inner[0]:inner[-1] + 1] = False
     return rest
+
+
+def _settled(x: np.ndarray, w: int) -> tuple[int, int]:
+    """How many frames at the clip's start and at its end (x: (T, k)) have settled: an end at least
+    2w frames long whose span (per column; a frame's median with its neighbours, so that a
+    one-frame glitch does not count) stays within SETTLED of the path's travel, and whose speed
+    over it is at most SETTLED_SPEED of the speed over the w frames next to it: a ball come to rest
+    where it lands, which a tracker at 240 fps reads to 0.006 px from frame to frame and which
+    wanders by 0.02 px in a codec's slow noise (7 of those spreads over 20 frames: no rest by
+    REST_SIGMAS, and the flight was grown into 35 frames of it: g 0.13 for 19.2). A motion that
+    slows smoothly (a drain, a decay, a swing dying out) is as slow just before as in its end."""
+    T = len(x)
+    travel = float(np.ptp(x, axis=0).max()) if T else 0.0
+    if T < 3 * w or travel <= 0:
+        return 0, 0
+    smooth = np.median(np.stack([x[:-2], x[1:-1], x[2:]]), axis=0)
+    smooth = np.concatenate([x[:1], smooth, x[-1:]])
+
+    def settled(y: np.ndarray) -> int:
+        # y runs from the end of the clip inward: the longest settled end, 0 if none
+        low, high = np.minimum.accumulate(y), np.maximum.accumulate(y)
+        ok = ((high - low) <= SETTLED * travel).all(axis=1)  # true up to a frame, false after it
+        n = len(ok) if ok.all() else int(np.argmin(ok))
+        if n < 2 * w or n + w > len(y):
+            return 0
+        own = float(np.abs(high[n - 1] - low[n - 1]).max()) / n
+        before = float(np.abs(y[n - 1 + w] - y[n - 1]).max()) / w
+        return n if own <= SETTLED_SPEED * before else 0
+
+    return settled(smooth), settled(smooth[::-1])
 
 
 def find_stretch(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray | None], *,
