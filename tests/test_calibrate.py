@@ -287,3 +287,33 @@ def test_the_calibrated_trajectory_is_the_runs_own_fitted_stretch():
                            analysis(k="dependent"))
     assert np.all(np.isnan(cal.rollout[:20, 0]))
     np.testing.assert_allclose(cal.rollout[20:, 0], h[20:], atol=1e-9)
+
+
+def test_a_calibration_that_moves_a_measured_constant_beyond_its_rescaling_widens_it_by_that():
+    """An angle measured in radians with a zero 6 mrad off and a reading that bends (the measured
+    fit refines the zero, and its L is right), calibrated by two exact angles: the map's scale is
+    within 1% of one, yet the calibrated refit moves L; the two readings of L disagree, and the
+    calibrated value carries the difference (a generated swing: +0.72% with +-0.08%, a false trust)."""
+    from fitode.codegen.block import simulate
+    system = parse("theta'' = -g/L*sin(theta) - zeta*theta'")
+    truth = {"L": 0.9, "zeta": 0.08}
+    dt = 1 / 60
+    theta = simulate(system, truth, {"theta": [0.7, 0.0]}, 90, dt, substeps=10).numpy()[:, 0]
+    t = np.arange(90) * dt  # 1.5 s, two thirds of a swing: the zero and the bend move L
+    reading = theta + 0.006 + 0.008 * theta ** 2
+    pts = parse_calibration(f"theta(0)={theta[0]}; theta({t[66]})={theta[66]}", ["theta"])
+    params = {"L": ParamSpec(init=1.0, min=0.0, unit="m"), "zeta": ParamSpec(init=0.1)}
+    scales = analysis(L="free-small-amplitude", zeta="free-small-amplitude")
+    plain = calibrate_result(fake_result(system, t, reading, truth), system, params, pts, scales)
+    res = fake_result(system, t, reading, truth)
+    res.meta["direct"] = True  # a measured path, fitted directly: the reading is in radians already
+    cal = calibrate_result(res, system, params, pts, scales)
+    c = cal.constants["L"]
+    assert abs(abs(cal.maps["theta"].a) - 1) < 0.02
+    moved = abs(c["after"] - c["before"]) / c["after"]
+    assert moved > 0.005
+    assert moved > 3 * plain.constants["L"]["relative_std"]  # beyond what the points' readings give it
+    assert c["relative_std"] >= moved
+    assert any(n.startswith("L: the calibration moves it") for n in cal.notes)
+    # a latent in arbitrary units (an encoder's) is not a reading of the same constant
+    assert plain.constants["L"]["relative_std"] < moved and not plain.notes
