@@ -56,15 +56,19 @@ class Track:
             xy[~seen, j] = np.interp(t[~seen], t[seen], xy[seen, j])
         return xy
 
-    def in_view(self, gap: int) -> tuple[int, int]:
+    def in_view(self, gap: int, far: float) -> tuple[int, int]:
         """[first, last + 1): the frames where the object is in view (a puck that slides in from
         the edge and out again is seen only in between): of the runs of seen frames no more than
-        `gap` frames apart, the one with the most (a flicker of noise seen long after the object
-        left is not it); (0, 0) where it never was."""
+        `gap` frames apart and no farther apart than `far` pixels a frame, the one with the most (a
+        flicker of noise seen before the object came or after it left is not it, nor what the
+        change detector finds at a ruler's edge in the frames without it); (0, 0) where it never
+        was."""
         seen = np.flatnonzero(~np.isnan(self.xy[:, 0]))
         if not len(seen):
             return 0, 0
-        runs = np.split(seen, np.flatnonzero(np.diff(seen) > gap) + 1)
+        frames = np.diff(seen)
+        step = np.hypot(*np.diff(self.xy[seen], axis=0).T)
+        runs = np.split(seen, np.flatnonzero((frames > gap) | (step > far * frames)) + 1)
         best = max(runs, key=len)
         return int(best[0]), int(best[-1]) + 1
 
