@@ -119,7 +119,12 @@ def readings(measurement: Mapping[str, Any] | None, latent, rollout, states) -> 
         if got is None:
             continue
         measured, label, to_reading, to_points = got
-        a, b = _affine(z[:, j], to_reading(measured, inverse=True))
+        # (not over the frames the latent read from their neighbours: the track there is what
+        # the reader set aside, a block gone from the view, and pulled the trajectory off the path)
+        mended = [i for i in (measurement.get("mended") or ()) if 0 <= int(i) < len(z)]
+        kept = z[:, j].copy()
+        kept[mended] = np.nan
+        a, b = _affine(kept, to_reading(measured, inverse=True))
         if how == "line" and a < 0:  # along the line the way the state grows: a fall reads as a distance fallen
             m = {**measurement, "line": {**measurement["line"], "direction": [-v for v in measurement["line"]["direction"]]}}
             measured, label, to_reading, to_points = _measured(m, how, track, len(z))

@@ -76,6 +76,22 @@ def test_a_state_read_along_an_image_axis_is_drawn_over_time_in_its_pixels():
     assert "up" in reading.label
 
 
+def test_the_trajectory_drawn_is_mapped_over_the_frames_read_and_not_over_those_set_aside():
+    # a block that slides out of a --roi: the frames after it left hold what the reader found
+    # instead (listed as mended, read from their neighbours in the latent), which pulled the map
+    # from the latent to the reading, and the fitted trajectory was drawn 15 px off the path
+    t = np.arange(60) / 60.0
+    along = 40 + 300 * t ** 2
+    track = np.stack([100 + 0.8 * along, 80 + 0.6 * along], axis=1)
+    z = (along - 100.0) * 0.003  # the latent: affine in the distance along the line
+    track[45:] = [[135.0, 100.0]] * 15  # gone: something else found where it started
+    z[45:] = z[44]
+    m = {"states": {"s": "line"}, "track": track.tolist(), "space": "source", "mended": list(range(45, 60)),
+         "line": {"point": [100.0, 80.0], "direction": [0.8, 0.6]}}
+    (reading,) = readings(m, z[:, None], z[:, None], ["s"])
+    np.testing.assert_allclose(reading.fitted[:45], along[:45], atol=1e-6)
+
+
 def test_a_size_is_recorded_with_its_radii_in_source_pixels(tmp_path):
     from fitode.train.observe import SizeObservation
     radii = np.linspace(10, 40, 50)
