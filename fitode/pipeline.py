@@ -333,37 +333,48 @@ def in_view(video, read: ReadOptions, req, clip, t0: float, plan, *, progress: b
 
 def view_span(track, box: tuple, *, start_given: bool = False, end_given: bool = False) -> tuple[int, int] | None:
     """[a, b): the frames a track (train/observe/track.Track) sees the object whole in the view
-    box (x, y, w, h in its pixels), where it is unseen in more than UNSEEN_MAX of them and most of
-    those lie before a or after b; None where nothing is to be cut, where the object is as often
-    unseen inside [a, b) (the observation then says so), or where [a, b) is too short to fit.
+    box (x, y, w, h in its pixels) in, where it enters the view after the clip's first frame or
+    leaves it before the last; None where it does neither, where it is unseen in more than
+    UNSEEN_MAX of [a, b) (the observation then says so), or where [a, b) is too short to fit.
     start_given, end_given: the user chose that end (--start, --end), which stays theirs.
 
     The frames the object is seen in are the run of them with the most, no gap longer than
     UNSEEN_MAX of the clip and no step longer than 3 times the median step or its radius (noise
-    seen before it came or after it left is not it), less the frames where its centre lies nearer an
-    edge of the box than its radius (from its mean area): part of it is cut off and its centroid
-    lags the object's (a puck 8 px in radius entering at 4 px a frame: 3 frames, which moved its
-    speed 0.5% against a 95% interval of 0.36%)."""
+    seen before it came or after it left is not it). It enters the view where that run starts
+    after the first frame at the edge of the box (within twice its radius and a frame's step: an
+    object that is unseen because it stands still, merged into the static scene, is not entering
+    from the middle of the view), and leaves it likewise; the frames where its centre lies nearer
+    an edge than its radius (from its mean area) are cut too: part of it is cut off and its
+    centroid lags the object's (a puck 8 px in radius entering at 4 px a frame: 3 frames, which
+    moved its speed 0.5% against a 95% interval of 0.36%)."""
     import numpy as np
 
     from fitode.train.stretch import MIN_SEED
 
     xy, n = track.xy, len(track)
-    if track.unseen <= UNSEEN_MAX * n:
-        return None
     r = float(np.sqrt(max(track.area, 1.0) / np.pi)) + 1.0
     step = np.hypot(*np.diff(xy, axis=0).T)  # from one frame to the next, where both are seen
-    far = 3.0 * max(float(np.nanmedian(step)) if np.isfinite(step).any() else 0.0, r)
-    a, b = track.in_view(gap=max(1, int(UNSEEN_MAX * n)), far=far)
+    typical = float(np.nanmedian(step)) if np.isfinite(step).any() else 0.0
+    a, b = track.in_view(gap=max(1, int(UNSEEN_MAX * n)), far=3.0 * max(typical, r))
+    if b <= a:
+        return None
     x0, y0, w, h = box
-    whole = ((xy[:, 0] - x0 >= r - 0.5) & (x0 + w - 0.5 - xy[:, 0] >= r)
-             & (xy[:, 1] - y0 >= r - 0.5) & (y0 + h - 0.5 - xy[:, 1] >= r))
-    while a < b and a > 0 and not whole[a]:
+
+    def margin(p) -> float:  # how far inside the box a point is
+        return float(min(p[0] - x0, x0 + w - 0.5 - p[0], p[1] - y0, y0 + h - 0.5 - p[1]))
+
+    edge = 2 * r + 1 + typical
+    enters = a > 0 and not start_given and margin(xy[a]) <= edge
+    leaves = b < n and not end_given and margin(xy[b - 1]) <= edge
+    if not (enters or leaves):
+        return None
+    a, b = (a if enters else 0), (b if leaves else n)
+    whole = np.array([margin(p) >= r - 0.5 if np.isfinite(p).all() else False for p in xy])
+    while enters and a < b and not whole[a]:
         a += 1
-    while b > a and b < n and not whole[b - 1]:
+    while leaves and b > a and not whole[b - 1]:
         b -= 1
-    a, b = (0 if start_given else a), (n if end_given else b)
-    if (a, b) == (0, n) or b - a < 3 * MIN_SEED or np.isnan(xy[a:b, 0]).sum() > UNSEEN_MAX * (b - a):
+    if b - a < 3 * MIN_SEED or np.isnan(xy[a:b, 0]).sum() > UNSEEN_MAX * (b - a):
         return None
     return a, b
 

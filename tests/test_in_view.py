@@ -49,6 +49,22 @@ def test_no_span_where_the_object_is_in_view_enough_or_lost_in_the_middle():
     assert view_span(short, BOX) is None
 
 
+def test_an_object_that_comes_in_and_stops_in_view_is_cut_where_it_came_in_and_one_still_is_not():
+    # a puck sliding in from the left edge, slowing to rest in the middle: unseen in 3 frames only
+    t = np.arange(150) / 60
+    x = -20 + 300 * np.minimum(t, 1.5) - 100 * np.minimum(t, 1.5) ** 2
+    xy = np.column_stack([x, 90 + 0.05 * x])
+    xy[x < -8] = np.nan
+    xy[1] = (208.0, 95.0)  # a flicker of noise where it will come to rest
+    a, b = view_span(Track(xy, 227.0, 1, "generated"), BOX)
+    assert b == 150 and x[a] >= 9 and x[a - 1] < 9.5
+    # a ball unseen at first because it hangs still in the middle, merged into the static scene,
+    # then swinging: it does not enter the view there
+    swing = np.column_stack([160 + 40 * np.sin(np.arange(150) / 9.0), np.full(150, 90.0)])
+    swing[:20] = np.nan
+    assert view_span(Track(swing, 227.0, 1, "generated"), BOX) is None
+
+
 def test_pieces_of_an_object_that_enters_and_leaves_are_no_hold_and_no_stop():
     dt = 1 / 60
     t = np.arange(80) * dt
