@@ -91,3 +91,16 @@ def test_a_fall_with_strong_drag_gives_k_side_on_and_no_perspective_bend(tmp_pat
     # before: the path read up (y up) had no one trajectory with a positive scale, k = -0.003
     assert res.values["k"] == pytest.approx(0.2724, rel=0.10)
     assert not res.checks["perspective"]["apply"]
+
+
+def test_a_bend_no_camera_makes_is_not_applied():
+    # a throw's flight and the rest after its landing, one stretch: a bend of 0.75 at the ends fits
+    # them better than none, and the path read through it gave g 0.13 for 19.2
+    system, config = parse("y'' = -g", free=["g"]), TrainConfig()
+    dt = 1 / 240
+    t = np.arange(48) * dt
+    flight = 2.0 + 250.0 * t - 0.5 * 10400.0 * t ** 2
+    x = np.concatenate([flight, np.full(20, flight[-1])]) + 0.01 * np.random.default_rng(0).standard_normal(68)
+    found = perspective_check(system, {}, x[:, None], dt, {"g": 1.0}, config)
+    assert found["bend_at_ends"] > 0.5 and found["misfit"][1] < found["misfit"][0]
+    assert not found["apply"]
