@@ -354,3 +354,20 @@ def test_a_held_swing_is_cut_at_its_release_with_the_angles_zero_refined(tmp_pat
     assert result.meta["stretch"]["start_s"] == pytest.approx(v.meta["physical"]["hold_s"], abs=0.1)
     assert result.parameters["L"].value == pytest.approx(0.8644984, rel=0.005)
     assert result.verdicts["L"]["verdict"] == "trusted"
+
+
+def test_a_hold_that_wanders_by_a_hundredth_of_a_pixel_is_held_still():
+    # a throw held 80 frames at 240 fps, read to 0.006 px from frame to frame but wandering by
+    # 0.03 px in a codec's slow noise: more than REST_SIGMAS of its noise, yet no hand moved it
+    # ("moved by something other than the equation (a hand?)" before)
+    dt = 1 / 240
+    rng = np.random.default_rng(4)
+    t = np.arange(48) * dt
+    flight = 250.0 * t - 0.5 * 10400.0 * t ** 2
+    frames = np.arange(80)
+    hold = 0.03 * np.sin(2 * np.pi * frames / 29 + 1.0)
+    x = np.concatenate([hold, flight[1:], np.full(60, flight[-1])]) + 0.006 * rng.standard_normal(80 + 47 + 60)
+    pieces = find_pieces(x[:, None], dt, parabola_fit(x))
+    kinds = [e.kind for e in pieces.events]
+    assert kinds[:2] == ["hold", "release"], pieces.events
+    assert "held still until" in pieces.describe(dt)

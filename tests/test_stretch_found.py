@@ -11,7 +11,7 @@ import torch
 
 import fitode
 from fitode.train.observe.tracking import runs_one_way
-from fitode.train.stretch import _settled, at_rest, find_stretch, noise_level, one_way_runs, rest_window
+from fitode.train.stretch import at_rest, find_stretch, noise_level, one_way_runs, rest_window, settled_ends
 from fitode.video.track import follow
 
 from test_observe_plugins import FAST, PixelTracker, _frames
@@ -162,4 +162,4 @@ def test_a_motion_that_slows_smoothly_has_no_settled_end():
     drain = (1.0 - 0.06 * t / 2) ** 2 + 1e-5 * np.random.default_rng(1).standard_normal(len(t))
     decay = np.exp(-0.25 * t) + 1e-5 * np.random.default_rng(2).standard_normal(len(t))
     for x in (drain, decay):
-        assert _settled(x[:, None], rest_window(0.05)) == (0, 0)
+        assert settled_ends(x[:, None], rest_window(0.05)) == (0, 0)

@@ -28,7 +28,7 @@ from typing import Callable
 
 import numpy as np
 
-from .stretch import BREAK, MIN_SEED, REST_SIGMAS, TOL, at_rest, find_stretch, noise_level, rest_window
+from .stretch import BREAK, MIN_SEED, REST_SIGMAS, TOL, at_rest, find_stretch, noise_level, rest_window, settled_ends
 
 JUMP = 6.0        # an impact: the velocities either side of a frame differ by this many times their noise
 MOVING = 2.0      # ... and turn round, at least this many times that noise fast either side
@@ -310,7 +310,9 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
         elif first > 0:
             # still: at rest over most of what came before, or, a hold shorter than a rest's window
             # (a throw held 7 frames at 60 fps), flat over the frames the release was read from
-            still = rest[:first].mean() > 0.5 or _flat(x[max(first - _release_window(dt), 0):first], noise_all)
+            still = (rest[:first].mean() > 0.5 or _flat(x[max(first - _release_window(dt), 0):first], noise_all)
+                     # or settled: a hold read to a hundredth of a pixel wanders more than its noise
+                     or settled_ends(x, rest_window(dt))[0] >= first - rest_window(dt))
             events.append(Event(first, "hold" if still else "moved"))
             events.append(Event(first, "release"))
         for (_, b), (a, _) in zip(spans, spans[1:]):

@@ -99,7 +99,7 @@ def at_rest(x: np.ndarray, dt: float, noise: float) -> np.ndarray:
     still = span <= REST_SIGMAS * noise
     for i in np.flatnonzero(still):
         rest[i:i + w] = True
-    head, tail = _settled(x, w)
+    head, tail = settled_ends(x, w)
     rest[:head] = True
     rest[T - tail:] = True
     # only a stillness that opens or closes the clip is a rest (before a release, after a stop): a
@@ -111,7 +111,7 @@ def at_rest(x: np.ndarray, dt: float, noise: float) -> np.ndarray:
     return rest
 
 
-def _settled(x: np.ndarray, w: int) -> tuple[int, int]:
+def settled_ends(x: np.ndarray, w: int) -> tuple[int, int]:
     """How many frames at the clip's start and at its end (x: (T, k)) have settled: an end at least
     2w frames long whose span (per column; a frame's median with its neighbours, so that a
     one-frame glitch does not count) stays within SETTLED of the path's travel, and whose speed
