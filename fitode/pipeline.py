@@ -291,16 +291,16 @@ def read_clip(video: str | Path, read: ReadOptions = ReadOptions(), calibration:
     return clip, t0
 
 
-# the share of the frames a place may be unseen in before the clip is read again where the object
-# is in view (the observations that read a place refuse more: observe.position, observe.angle)
+# the share of the frames the object may be unseen in where it is in view (the observations that
+# read a place refuse more: observe.position, observe.angle), and the longest gap in its sighting
 UNSEEN_MAX = 0.1
 
 
 def in_view(video, read: ReadOptions, req, clip, t0: float, plan, *, progress: bool = False):
-    """(clip, t0, plan): the clip read again where the object is in view (view_span), where the
-    plan reads a place (position, angle) and the frames before and after (a puck that slides in from
-    the edge and out again, a cart that leaves the view) leave it unseen in more than UNSEEN_MAX of
-    the clip; an end the user gave (--start, --end) stays theirs. Said in a note of the clip."""
+    """(clip, t0, plan): the clip read again where the object is whole in view (view_span), where
+    the plan reads a place (position, angle) and the object enters the view after the first frame
+    or leaves it before the last (a puck that slides in from the edge and out again, a cart that
+    leaves the view); an end the user gave (--start, --end) stays theirs. Said in a note of the clip."""
     from dataclasses import replace
 
     from fitode import api

@@ -9,6 +9,8 @@ from fitode.pipeline import UNSEEN_MAX, view_span
 from fitode.train.observe.track import Track
 from fitode.train.pieces import find_pieces
 
+from test_pieces import parabola_fit
+
 BOX = (0, 0, 320, 180)
 
 
@@ -71,14 +73,7 @@ def test_pieces_of_an_object_that_enters_and_leaves_are_no_hold_and_no_stop():
     x = 250.0 * t - 0.5 * 90.0 * t ** 2 + np.random.default_rng(0).normal(0, 0.1, 80)
     # the edge frames are cut already; a slow first frame must not read as a hold, released
     x[0] = x[1]
-
-    def fit(a, b):
-        if b - a < 4:
-            return None
-        tt = np.arange(b - a)
-        c = np.polyfit(tt, x[a:b], 2)
-        return (np.polyval(c, tt) - x[a:b])[:, None]
-
+    fit = parabola_fit(x)
     pieces = find_pieces(x[:, None], dt, fit, enters=True, leaves=True)
     kinds = [e.kind for e in pieces.events]
     assert kinds[0] == "enter" and kinds[-1] == "gone" and "release" not in kinds and "stop" not in kinds
