@@ -414,8 +414,7 @@ def _moved_share(c: Mapping[str, Any], maps: Mapping[str, AffineMap], measured: 
     (a generated 39-degree swing: the measured angles gave L 0.05% off, two exact angles moved
     it +0.72% with an interval of +-0.08%: a reading that bends by 4 mrad and a zero 2 mrad off,
     which the measured fit refines and the calibration's two points fix). 0 otherwise."""
-    if not measured or not c.get("converted") or not maps \
-            or any(abs(abs(m.a) - 1.0) > NEAR_ONE for m in maps.values()):
+    if not measured or not c.get("converted") or not maps or _rescale(maps) > 100 * NEAR_ONE:
         return 0.0
     after, before = c.get("after"), c.get("before")
     if after is None or before is None or not (math.isfinite(after) and math.isfinite(before)) or after == 0:

@@ -360,7 +360,7 @@ def view_span(track, box: tuple, *, start_given: bool = False, end_given: bool =
         return None
     x0, y0, w, h = box
 
-    def margin(p) -> float:  # how far inside the box a point is
+    def margin(p) -> float:  # how far inside the box a point is (NaN where unseen)
         return float(min(p[0] - x0, x0 + w - 0.5 - p[0], p[1] - y0, y0 + h - 0.5 - p[1]))
 
     edge = 2 * r + 1 + typical
@@ -369,10 +369,9 @@ def view_span(track, box: tuple, *, start_given: bool = False, end_given: bool =
     if not (enters or leaves):
         return None
     a, b = (a if enters else 0), (b if leaves else n)
-    whole = np.array([margin(p) >= r - 0.5 if np.isfinite(p).all() else False for p in xy])
-    while enters and a < b and not whole[a]:
+    while enters and a < b and not margin(xy[a]) >= r - 0.5:
         a += 1
-    while leaves and b > a and not whole[b - 1]:
+    while leaves and b > a and not margin(xy[b - 1]) >= r - 0.5:
         b -= 1
     if b - a < 3 * MIN_SEED or np.isnan(xy[a:b, 0]).sum() > UNSEEN_MAX * (b - a):
         return None
