@@ -276,11 +276,12 @@ def rate_std(fps: float | None) -> float:
 
 # ---------------------------------------------------------------------------------------------
 def read_clip(video: str | Path, read: ReadOptions = ReadOptions(), calibration: tuple = (), *,
-              progress: bool = False) -> tuple[Any, float]:
+              progress: bool = False, track: bool = True) -> tuple[Any, float]:
     """The clip a fit of `video` uses (fitode.video.Clip) and the video time of its first frame
     (what `start` skipped), with the checks of `fitode VIDEO`: at least one frame, calibration
-    times inside the clip. fitode.fit reads a path through here too, so both fit the same frames."""
-    clip = _read(video, **read.as_dict(), progress=progress)
+    times inside the clip. fitode.fit reads a path through here too, so both fit the same frames.
+    track: False to leave the object's track out (Clip.track None): a read again of the same frames."""
+    clip = _read(video, **read.as_dict(), progress=progress, track=track)
     n_frames = int(clip.frames.shape[0])
     if n_frames == 0:
         raise FitodeError(f"{video}: no frames to fit (check --start/--end)")
@@ -380,15 +381,23 @@ def view_span(track, box: tuple, *, start_given: bool = False, end_given: bool =
 
 def read_again(video, read: ReadOptions, req, clip, t0: float, plan, *, progress: bool = False):
     """(clip, t0, plan): the clip read again where the observation the plan chose reads it better
-    otherwise (light_in_colour, level_in_detail); the observation the plan chose is kept."""
+    otherwise (light_in_colour, level_in_detail, extent_in_detail); the observation the plan
+    chose is kept."""
     clip, t0, plan = light_in_colour(video, read, req, clip, t0, plan, progress=progress)
-    return level_in_detail(video, read, req, clip, t0, plan, progress=progress)
+    clip, t0, plan = level_in_detail(video, read, req, clip, t0, plan, progress=progress)
+    return extent_in_detail(video, read, req, clip, t0, plan, progress=progress)
 
 
 # the short side a level is read at, where the source has it: the default frames' 64 rows leave a
 # generated drain's level 4-5 rows of travel, read with slow errors of 0.06 rows (k 2.6% off with
 # +-3%); at its source's 135 rows, 10 rows (k 1.3% off with +-2%)
 LEVEL_SHORT = 360
+# the short side a size or distance is read at in colour, where the source has it, and at most
+# this many pixels in all the frames (a long clip is read smaller: memory stays bounded): the
+# outline of a ball on the generated falls at 64 rows in colour gives g +1.0% (rms 4.0%), at 128
+# -0.1% (rms 1.6%) (train/observe/extent.py)
+EXTENT_SHORT = 360
+EXTENT_PIXELS = 2e7
 
 
 def level_in_detail(video, read: ReadOptions, req, clip, t0: float, plan, *, progress: bool = False):
@@ -396,25 +405,75 @@ def level_in_detail(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
     own size where smaller) where the plan reads a level from shrunk frames: the level is read as
     a fraction of a row, and more rows read it finer. Not where the user gave --size, --roi or a
     mask (the frames are then theirs), nor where the frames read again show no level."""
-    from dataclasses import replace
-
     from fitode import api
     from fitode.train.observe.level import LevelObservation, read_level
 
-    if read.size is not None or read.roi is not None or read.mask is not None \
-            or not any(isinstance(p, LevelObservation) for p in _observation_parts(plan)):
+    if read.roi is not None or read.mask is not None or not _reads(plan, LevelObservation):
         return clip, t0, plan
-    hs, ws = clip.source_size
-    scale = min(1.0, LEVEL_SHORT / min(hs, ws))
-    size = (max(1, round(hs * scale)), max(1, round(ws * scale)))
-    if size[0] <= int(clip.frames.shape[-2]):
-        return clip, t0, plan
-    finer, t1 = read_clip(video, replace(read, size=size, stride=clip.stride), req.calibration, progress=progress)
-    frames = api.as_frames(finer.frames)
-    level = read_level(frames, plan.n_train)
-    if level is None or not level.is_level:
+
+    def shows(frames) -> bool:
+        level = read_level(frames, plan.n_train)
         # more rows can split what the shrunk frames saw as one line (the real bottle at 360 rows)
+        return level is not None and level.is_level
+    return _finer(video, read, req, clip, t0, plan, short=LEVEL_SHORT, color=read.color, shows=shows,
+                  why="the level is read as a fraction of a row", progress=progress)
+
+
+def extent_in_detail(video, read: ReadOptions, req, clip, t0: float, plan, *, progress: bool = False):
+    """(clip, t0, plan): the clip read again in colour at up to EXTENT_SHORT on its short side
+    (within EXTENT_PIXELS) where the plan reads a size or a distance: the outline of an object is
+    placed by its colour against the background's (train/observe/extent.py), and a radius of
+    more pixels is read finer. Not where the user gave --size (the frames are then theirs); the
+    region (--roi) and the mask stay theirs."""
+    from fitode.train.observe.size import SizeObservation
+
+    if not _reads(plan, SizeObservation):
         return clip, t0, plan
+    hs, ws = _region(clip)
+    budget = (EXTENT_PIXELS / (max(int(clip.frames.shape[0]), 1) * hs * ws)) ** 0.5
+    return _finer(video, read, req, clip, t0, plan, short=EXTENT_SHORT, color=True, shows=None, limit=budget,
+                  why="the object's outline is placed by its colour against the background's", progress=progress)
+
+
+def _region(clip) -> tuple[int, int]:
+    """(H, W) of what the read crops from the source: --roi's box, or the whole frame."""
+    return (int(clip.roi[3]), int(clip.roi[2])) if clip.roi else tuple(clip.source_size)
+
+
+def _reads(plan, kind) -> bool:
+    return any(isinstance(p, kind) for p in _observation_parts(plan))
+
+
+def _finer(video, read: ReadOptions, req, clip, t0: float, plan, *, short: int, color: bool, why: str,
+           shows=None, limit: float = 1.0, progress: bool = False):
+    """(clip, t0, plan): the clip read again at up to `short` on its short side, the source's own
+    size where smaller, scaled down further by `limit`, in colour if `color`; re-planned with the
+    observation the plan chose, and a note of the clip saying so and `why`. The clip as it was
+    where the user gave --size, where that is no finer (and no colour gained), or where
+    shows(frames) says the finer frames do not show it."""
+    from dataclasses import replace
+
+    from fitode import api
+
+    if read.size is not None:
+        return clip, t0, plan
+    hs, ws = _region(clip)
+    scale = min(1.0, short / min(hs, ws), limit)
+    size = (max(1, round(hs * scale)), max(1, round(ws * scale)))
+    gains_colour = color and int(clip.frames.shape[1]) < 3
+    if size[0] <= int(clip.frames.shape[-2]) and not gains_colour:
+        return clip, t0, plan
+    size = size if size[0] > int(clip.frames.shape[-2]) else tuple(int(v) for v in clip.frames.shape[-2:])
+    # the same frames: the object's track (measured at the source's resolution) is the first read's
+    finer, t1 = read_clip(video, replace(read, size=size, stride=clip.stride, color=color), req.calibration,
+                          progress=progress, track=False)
+    finer.track = clip.track
+    frames = api.as_frames(finer.frames)
+    if shows is not None and not shows(frames):
+        return clip, t0, plan
+    finer.stride_reason = clip.stride_reason  # the stride was chosen once, on the first read
+    h, w = finer.size
+    finer.notes.append(f"read again at {w}x{h}{' in colour' if color and not read.color else ''}: {why}")
     req = replace(req, observe=plan.observation)
     return finer, t1, api.plan(req, frames, finer.dt, track=finer.track, geometry=geometry(finer))
 
@@ -438,7 +497,10 @@ def light_in_colour(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
     if read.color or not any(isinstance(p, BrightnessObservation) and p.light == "srgb"
                              for p in _observation_parts(plan)):
         return clip, t0, plan
-    clip, t0 = read_clip(video, replace(read, color=True, stride=clip.stride), req.calibration, progress=progress)
+    track = clip.track  # the same frames: the first read's track
+    clip, t0 = read_clip(video, replace(read, color=True, stride=clip.stride), req.calibration, progress=progress,
+                         track=False)
+    clip.track = track
     req = replace(req, observe=plan.observation)
     return clip, t0, api.plan(req, api.as_frames(clip.frames), clip.dt, track=clip.track, geometry=geometry(clip))
 

@@ -22,7 +22,7 @@ def read_video(path: str | Path, *, fps: float | None = None, start: float | Non
                end: float | None = None, roi: tuple[int, int, int, int] | None = None,
                size: tuple[int, int] | None = None, color: bool = False,
                stride: int | str = "auto", mask: str | Path | None = None, short_side: int = 64,
-               progress: bool = False) -> Clip:
+               progress: bool = False, track: bool = True) -> Clip:
     """Read and preprocess frames; every problem is a one-line `VideoError`.
 
     path: a video file (anything OpenCV's FFmpeg reads: mp4, avi, mov, mkv, webm, gif, ...), a
@@ -47,6 +47,8 @@ def read_video(path: str | Path, *, fps: float | None = None, start: float | Non
         (a 0/1 label mask) is used as is. Applied at source resolution, after the crop and
         before the resize.
     progress: show a progress bar on stderr.
+    track: measure where the moving object is in every kept frame as they are decoded (Clip.track,
+        fitode.video.track); False where the caller has it from an earlier read of the same frames.
 
     `sha256` is that of the file; for a folder it is the SHA-256 of the text made of one line
     per image, in the order used: the file name, a tab, the SHA-256 of its bytes.
@@ -76,7 +78,7 @@ def read_video(path: str | Path, *, fps: float | None = None, start: float | Non
     src = open_source(p)
     try:
         return _read(p, src, fps, start, end, roi, size, bool(color), stride_arg,
-                     None if mask is None else Path(mask), side, progress)
+                     None if mask is None else Path(mask), side, progress, bool(track))
     finally:
         src.close()
 
@@ -90,7 +92,7 @@ def _frame_range(fps: float, start: float | None, end: float | None) -> tuple[in
 
 
 def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color: bool,
-          stride_arg: int | str, mask_path: Path | None, short_side: int, progress: bool) -> Clip:
+          stride_arg: int | str, mask_path: Path | None, short_side: int, progress: bool, follow: bool = True) -> Clip:
     name = p.name or str(p)
     if fps is not None:
         fps_used, fps_source = fps, "user"
@@ -157,7 +159,8 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
                     cut = the_mask.current() if the_mask is not None else None
                     small = prep(frame, src.unit(frame), cut)
                     assert tracker is not None
-                    tracker.add(frame, src.unit(frame), cut)
+                    if follow:
+                        tracker.add(frame, src.unit(frame), cut)
                     keeper.add(i, frame, src.unit(frame))
                     if buf is None or kept == buf.shape[0]:
                         buf = _grow(buf, kept, small.shape, todo, first, explicit)
@@ -227,7 +230,7 @@ def _read(p: Path, src: Source, fps: float | None, start, end, roi, size, color:
     every = slice(0, kept, k if explicit is None else 1)
     assert tracker is not None
     # the collected frame behind every kept one (repeats dropped, a filled-in frame its nearest)
-    track = tracker.finish(((source - first) // (explicit or 1))[every])
+    track = tracker.finish(((source - first) // (explicit or 1))[every]) if follow else None
     kept_times = None if times is None else np.asarray(times[every])
     return Clip(frames=frames, fps=fps_used, fps_source=fps_source, stride=k, dt=k / fps_used,
                 stride_reason=reason, path=str(p), sha256=sha, source_size=hw,
