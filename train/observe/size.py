@@ -11,6 +11,24 @@ from .drawing import points, record
 from .extent import SMALL, apparent_radii
 
 
+# the short side of the frames the principal components come from (fitode.video's default read)
+COMPONENTS_SHORT = 64
+
+
+def _as_read(frames: torch.Tensor) -> torch.Tensor:
+    """frames (T, C, H, W) in gray and shrunk by area to COMPONENTS_SHORT on the short side, as the
+    first read gives them: a size is read again in colour at the source's size for its outline
+    (fitode.pipeline.extent_in_detail), where the principal components of every pixel in double
+    precision would take gigabytes on a long clip and tell the starts nothing more."""
+    gray = frames.mean(dim=1, keepdim=True) if frames.shape[1] > 1 else frames
+    h, w = gray.shape[-2:]
+    scale = COMPONENTS_SHORT / min(h, w)
+    if scale >= 1:
+        return gray
+    size = (max(1, round(h * scale)), max(1, round(w * scale)))
+    return torch.nn.functional.interpolate(gray, size=size, mode="area")
+
+
 class SizeObservation(MeasuredObservation):
     """The camera sees how large something looks: the latent is affine in its apparent radius
     (extent.py), for what grows or shrinks in place (the paper's scale videos, a balloon, a
@@ -24,7 +42,8 @@ class SizeObservation(MeasuredObservation):
         return radius
 
     def prepare(self, frames: torch.Tensor, architecture: str = "linear", fit_frames: int | None = None) -> Prepared:
-        out = ObservationModel.prepare(self, frames, architecture, fit_frames)  # the components the checks score against
+        # the components the starts and checks read, from the frames as the first read shrinks them
+        out = ObservationModel.prepare(self, _as_read(frames), architecture, fit_frames)
         radius, centre, unseen = apparent_radii(frames)
         if unseen > 0.1 * frames.shape[0]:
             raise ConfigError(f"the {self.name} observation sees no outline change in {unseen} of {frames.shape[0]} "
