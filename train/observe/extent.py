@@ -93,23 +93,23 @@ def apparent_radii(frames: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, in
 def outline_radii(frames: torch.Tensor, radius: torch.Tensor, centre: torch.Tensor) -> torch.Tensor:
     """(T,) the radius of each frame's outline about its centre (see the module docstring), searched
     for near the ring radius of the frame and its neighbours, in frames in colour (in gray the ring
-    radii are returned: a yellow ball on a grey floor differs little from it in gray). A frame with no outline to find (too
-    little of it in view, too faint) keeps its ring radius rescaled as the others' outlines were;
-    where most frames have none, the ring radii are returned."""
-    n_frames, _, h, w = frames.shape
+    radii are returned: a yellow ball on a grey floor differs little from it in gray, g -6%). A
+    frame with no outline to find (too little of it in view, too faint) keeps its ring radius
+    rescaled as the others' outlines were; where most frames have none, the ring radii are returned."""
+    n_frames, channels, h, w = frames.shape
+    if channels < 3:
+        return radius
     ring = radius.double()
     out = torch.full_like(ring, float("nan"))
-    if frames.shape[1] < 3:
-        return radius  # in gray, a yellow ball on a grey floor shows its shading more than its outline (g -6%)
     for t in range(n_frames):
         near = ring[max(t - 1, 0):t + 2]
         lo, hi = max(float(near.min()) - OUTLINE_PAD, 1.0), float(near.max()) + OUTLINE_PAD
         out[t] = _outline(frames[t].double(), centre[t].double(), lo, hi, h, w)
-    found = torch.isfinite(out)
+    found = torch.isfinite(out) & (ring > 0)
     if int(found.sum()) < OUTLINE_SHARE * n_frames:
         return radius
     ratio = (out[found] / ring[found]).median()
-    return torch.where(found, out, ring * ratio).to(radius.dtype)
+    return torch.where(torch.isfinite(out), out, ring * ratio).to(radius.dtype)
 
 
 def _outline(img: torch.Tensor, centre: torch.Tensor, lo: float, hi: float, h: int, w: int) -> float:
