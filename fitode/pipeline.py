@@ -464,14 +464,10 @@ def _finer(video, read: ReadOptions, req, clip, t0: float, plan, *, short: int, 
     if size[0] <= int(clip.frames.shape[-2]) and not gains_colour:
         return clip, t0, plan
     size = size if size[0] > int(clip.frames.shape[-2]) else tuple(int(v) for v in clip.frames.shape[-2:])
-    # the same frames: the object's track (measured at the source's resolution) is the first read's
-    finer, t1 = read_clip(video, replace(read, size=size, stride=clip.stride, color=color), req.calibration,
-                          progress=progress, track=False)
-    finer.track = clip.track
+    finer, t1 = _read_same(video, replace(read, size=size, color=color), req, clip, progress=progress)
     frames = api.as_frames(finer.frames)
     if shows is not None and not shows(frames):
         return clip, t0, plan
-    finer.stride_reason = clip.stride_reason  # the stride was chosen once, on the first read
     h, w = finer.size
     finer.notes.append(f"read again at {w}x{h}{' in colour' if color and not read.color else ''}: {why}")
     req = replace(req, observe=plan.observation)
@@ -481,6 +477,17 @@ def _finer(video, read: ReadOptions, req, clip, t0: float, plan, *, short: int, 
 def _observation_parts(plan):
     """The plan's observation models: each state's where states are observed apart, else the one."""
     return getattr(plan.observation, "parts", {"": plan.observation}).values()
+
+
+def _read_same(video, read: ReadOptions, req, clip, *, progress: bool = False):
+    """(clip, t0): the frames of `clip` read again as `read` says (another size, colour), at its
+    stride: the stride's reason and the object's track (measured at the source's resolution) are
+    the first read's, not read or measured again."""
+    from dataclasses import replace
+
+    again, t0 = read_clip(video, replace(read, stride=clip.stride), req.calibration, progress=progress, track=False)
+    again.track, again.stride_reason = clip.track, clip.stride_reason
+    return again, t0
 
 
 def light_in_colour(video, read: ReadOptions, req, clip, t0: float, plan, *, progress: bool = False):
@@ -497,10 +504,7 @@ def light_in_colour(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
     if read.color or not any(isinstance(p, BrightnessObservation) and p.light == "srgb"
                              for p in _observation_parts(plan)):
         return clip, t0, plan
-    track = clip.track  # the same frames: the first read's track
-    clip, t0 = read_clip(video, replace(read, color=True, stride=clip.stride), req.calibration, progress=progress,
-                         track=False)
-    clip.track = track
+    clip, t0 = _read_same(video, replace(read, color=True), req, clip, progress=progress)
     req = replace(req, observe=plan.observation)
     return clip, t0, api.plan(req, api.as_frames(clip.frames), clip.dt, track=clip.track, geometry=geometry(clip))
 

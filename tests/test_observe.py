@@ -298,6 +298,19 @@ def test_the_outline_of_a_falling_ball_is_where_it_is_not_where_its_ring_of_chan
     assert max(outline) < 0.012 and np.mean(outline) < 0.3 * np.mean(ring), (outline, ring)
 
 
+def test_a_lamp_read_again_in_colour_keeps_the_reason_for_its_stride(tmp_path):
+    from fitode import api
+    from fitode.pipeline import ReadOptions, light_in_colour, read_clip
+    path = synth.write_video(synth.scene("led", 1.0, duration=2.0, seed=1), tmp_path / "led.mp4")
+    req = api.requests(system="led_decay")[0]
+    clip, t0 = read_clip(path)
+    plan = api.plan(req, api.as_frames(clip.frames), clip.dt, track=clip.track)
+    again = light_in_colour(path, ReadOptions(), req, clip, t0, plan)[0]
+    assert again.frames.shape[1] == 3 and clip.frames.shape[1] == 1
+    assert again.stride_reason == clip.stride_reason and "given by --stride" not in again.stride_reason
+    assert again.track is clip.track
+
+
 def test_a_size_is_read_again_in_colour_at_the_sources_size(tmp_path):
     from fitode import api
     from fitode.pipeline import ReadOptions, extent_in_detail, read_clip
@@ -311,6 +324,9 @@ def test_a_size_is_read_again_in_colour_at_the_sources_size(tmp_path):
     again, t1, replanned = extent_in_detail(path, ReadOptions(), req, clip, t0, plan)
     assert again.frames.shape[1:] == (3, *clip.source_size) and t1 == t0 and len(again.frames) == len(clip.frames)
     assert replanned.observation is plan.observation
+    # the same frames: the stride's reason and the object's track are the first read's, said once
+    assert again.stride_reason == clip.stride_reason and again.stride_reason.startswith("auto")
+    assert again.track is clip.track and "read again at" in again.notes[-1]
     # frames the user sized are theirs
     given, _ = read_clip(path, ReadOptions(size="115x64"))
     assert extent_in_detail(path, ReadOptions(size="115x64"), req, given, t0, plan)[0] is given
