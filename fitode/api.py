@@ -229,12 +229,14 @@ def _calibrate(result: FitResult, req: FitRequest, analysis, time_offset: float)
         if c["converted"]:
             est = result.parameters[name]
             est.latent_value, est.value, est.std, est.calibrated = est.value, c["after"], c["std_after"], True
+            if c.get("gauge_fixed"):  # one fit of the calibrated path, not a mean over restarts
+                est.std, est.n_runs = 0.0, 1
             # in the units of --calibrate: the equation file's unit, not the measured path's px
             spec = req.params.get(name)
             est.unit = spec.unit if spec is not None else None
     result.calibration = {**cal.to_dict(), "lines": cal.lines(), "latent": cal.latent.tolist(),
                           "rollout": cal.rollout.tolist(), "time_offset": time_offset,
-                          "ylabels": cal.ylabels(result.states)}
+                          "ylabels": cal.ylabels(result.states), "gauge_fixed": cal.gauge_fixed_names()}
     return cal.converted_names(), cal.findings(req.params)
 
 

@@ -11,7 +11,9 @@ result.json layout (every run of `fitode VIDEO ...` writes one):
     equation          text, normal_form, states, learnable, fixed
     identifiability   per constant: separable, combination, scale, reason (null when unavailable)
     parameters        NAME: value, std, n_runs, unit, scale, latent_units, best_run_only, calibrated,
-                      latent_value (before calibration), verdict, verdict_reason, verdict_other_reasons
+                      calibrated_path (the value is one fit of the path as calibrated, its zero set by
+                      the calibration: no mean over restarts), latent_value (before calibration),
+                      verdict, verdict_reason, verdict_other_reasons
     calibration       null, or the affine maps and the constants it converted (see fitode.calibrate)
     runs              every restart: index, seed, init, final, loss, steps, status, error, converged,
                       wall_s, selected (histories are in fit.json, or history.json for a partial run)
@@ -220,7 +222,9 @@ def complete_report(report: dict[str, Any], result, analysis, t0: float = 0.0) -
                         "calibrated": est.calibrated, "latent_value": est.latent_value, "interval": est.interval,
                         "latent_units": scale_dependent(analysis, name) and not est.calibrated
                         and not result.meta.get("physical_units", False),
-                        "best_run_only": name in result.meta.get("own_units", ()), **_verdict(result, name)}
+                        "best_run_only": name in result.meta.get("own_units", ()),
+                        "calibrated_path": name in ((result.calibration or {}).get("gauge_fixed") or ()),
+                        **_verdict(result, name)}
     report["parameters"] = params
     report["runs"] = [_run_entry(asdict(r), r.index in result.selected) for r in result.runs]
     report["selected"] = list(result.selected)
@@ -347,6 +351,10 @@ def format_table(report: Mapping[str, Any]) -> str:
         if only and n_sel > 1:
             out.append(f"  ({', '.join(only)}: the best restart's alone; each restart reads the same measured path "
                        "in units of its own)")
+        refitted = [n for n, p in params.items() if p.get("calibrated_path")]
+        if refitted and n_sel > 1:
+            out.append(f"  ({', '.join(refitted)}: one fit of the measured path as calibrated; the restarts differ only "
+                       "in the zero the calibration sets)")
         for i, r in enumerate(rows):
             out.append("  " + "  ".join([r[0].ljust(widths[0]), r[1].rjust(widths[1]), r[2].rjust(widths[2]),
                                          r[3].ljust(widths[3]), r[4].upper() if i else r[4]]).rstrip())

@@ -273,6 +273,31 @@ def test_a_slow_reading_error_at_the_points_widens_a_constant_the_map_offset_mov
     assert off < 2.5 * c["relative_std"]
 
 
+def test_the_fit_of_a_measured_path_whose_zero_the_map_sets_is_the_estimate_itself():
+    """A level read in pixels and fitted directly (one path for every restart), calibrated at its
+    ends: the map sets the zero that sqrt(h) reads, so k is the fit of the calibrated path, marked
+    gauge_fixed; an encoder's latent (not fitted directly) and an equation that does not read the
+    state's value (a fall) keep the mapping and the restarts."""
+    system = parse("h' = -k*sqrt(h)")
+    k, h0 = 0.0132, 0.243
+    t = np.arange(101) * 0.05
+    h = (math.sqrt(h0) - k * t / 2) ** 2
+    pts = parse_calibration(f"h(0)={h[0]}; h({t[-1]})={h[-1]}", ["h"])
+    spec = {"k": ParamSpec(init=1.0, min=0.0)}
+    direct = fake_result(system, t, (h - 0.2) / 0.01, {"k": 0.13})
+    direct.meta["direct"] = True
+    cal = calibrate_result(direct, system, spec, pts, analysis(k="dependent"))
+    assert cal.gauge_fixed_names() == ["k"] and cal.constants["k"]["after"] == pytest.approx(k, rel=1e-3)
+    encoded = fake_result(system, t, (h - 0.2) / 0.01, {"k": 0.13})
+    assert calibrate_result(encoded, system, spec, pts, analysis(k="dependent")).gauge_fixed_names() == []
+    fall = parse("y'' = -g")
+    y = 1.5 - 9.81 * t ** 2 / 2
+    falling = fake_result(fall, t, (y - 0.2) / 0.01, {"g": 981.0})
+    falling.meta["direct"] = True
+    points = parse_calibration(f"y(0)={y[0]}; y({t[-1]})={y[-1]}", ["y"])
+    assert calibrate_result(falling, fall, {}, points, analysis(g="dependent")).gauge_fixed_names() == []
+
+
 def test_the_calibrated_trajectory_is_the_runs_own_fitted_stretch():
     """A swing released after a hold: the run's trajectory covers its stretch only; calibrated, it
     is the same trajectory mapped, not a rollout from the held first frames."""

@@ -92,3 +92,24 @@ def test_a_level_is_read_again_at_the_sources_rows_and_reads_finer_there(tmp_pat
     given, _ = read_clip(path, ReadOptions(size="128x72"))
     same = level_in_detail(path, ReadOptions(size="128x72"), req, given, t0, plan)[0]
     assert same is given
+
+
+def test_a_drain_whose_zero_the_calibration_sets_is_judged_on_its_calibrated_path(tmp_path):
+    """A slow drain (a level that falls 11% in 4.5 s) read in pixels with its zero free: the
+    restarts end at one loss with k 17% apart, each with a zero of its own. The two calibration
+    points set the zero; the fit of the calibrated path is the estimate, and its interval comes
+    from that path (+-6.8%, most of it the points' readings), not from the restarts' spread
+    (+-30%, "the restarts it comes from disagree", before)."""
+    v = synth.scene("torricelli", 0.013, size=(180, 320), duration=4.5, noise=1.0, seed=1)
+    path = synth.write_video(v, tmp_path / "drain.mp4")
+    h = v.latent[:, 0]
+    res = fitode.fit(path, system="torricelli", calibrate=f"h(0)={h[0]:.9f}; h({(len(h) - 1) * v.dt:.6f})={h[-1]:.9f}",
+                     progress=False)
+    kept = [run.value("k") for run in res.runs if run.index in res.selected]
+    assert max(kept) / min(kept) > 1.05  # the case: apart in the path's own gauge
+    k = res.parameters["k"]
+    assert res.calibration["gauge_fixed"] == ["k"] and k.n_runs == 1 and k.std == 0.0
+    low, high = k.interval
+    assert low <= 0.013 <= high and high - low < 0.2 * k.value
+    assert "restarts" not in res.verdicts["k"]["reason"]
+    assert "one fit of the measured path as calibrated" in res.summary()

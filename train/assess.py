@@ -85,6 +85,9 @@ def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iter
     scores = [r.score for r in selected if r.score is not None and math.isfinite(r.score)]
     best_score = max(scores) if scores else None
     own_units = set(result.meta.get("own_units", ()))
+    # one fit of the calibrated path (fitode.calibrate._fixes_zero): the restarts differ only in the
+    # zero the calibration sets, so their agreement, rivals and settling say nothing of it
+    refitted = set((result.calibration or {}).get("gauge_fixed") or ()) if calibrated else set()
     verdicts: dict[str, Verdict] = {}
     everything: list[Finding] = list(measured)
     for name in result.parameters:
@@ -92,15 +95,16 @@ def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iter
         sources = [runs[result.best]] if name in own_units else selected
         found = [f for f in measured if f.names is None or name in f.names]
         mine = _identifiability(name, analysis, calibrated, physical_units, result)
-        mine += _agreement(name, value, sources)
-        mine += _rivals(name, result)
+        if name not in refitted:
+            mine += _agreement(name, value, sources)
+            mine += _rivals(name, result)
         mine += _precision(name, result.parameters[name], _shares(result, name))
-        if not interrupted:
+        if not interrupted and name not in refitted:
             mine += _settling(name, sources, int(result.settings.get("max_steps", 0)))
         everything += mine
         found += mine
         found.sort(key=lambda f: -LEVELS.index(f.level))  # stable: the checks' own order within a level
-        verdicts[name] = _verdict(found, sources, best_score, name in own_units)
+        verdicts[name] = _verdict(found, sources, best_score, name in own_units, name in refitted)
     return Assessment(verdicts, everything, _warnings(everything, verdicts), _notes(result, missed))
 
 
@@ -284,13 +288,16 @@ def _gauge_scaled(result) -> bool:
     return any(abs(g.get("scale", 1.0) - 1.0) > 1e-9 for g in gauge.values())
 
 
-def _verdict(found: list[Finding], sources, best_score: float | None, own_units: bool) -> Verdict:
+def _verdict(found: list[Finding], sources, best_score: float | None, own_units: bool,
+             refitted: bool = False) -> Verdict:
     if found:
         more = f" (and {len(found) - 1} more reason{'s' if len(found) > 2 else ''})" if len(found) > 1 else ""
         return Verdict(found[0].level, found[0].reason + more, tuple(f.reason for f in found[1:]))
     agree = f"{len(sources)} restarts agree" if len(sources) > 1 else "one restart"
     if own_units:
         agree = "the best restart's reading"
+    if refitted:
+        agree = "one fit of the path as calibrated, whose zero the calibration sets"
     why = (f"the latent tells the frames apart (score {best_score:.2f})" if best_score is not None
            else "the latent is a measured quantity, read linearly")
     return Verdict("trusted", f"{agree}; {why}")
