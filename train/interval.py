@@ -551,15 +551,20 @@ def result_intervals(result, system, params: Mapping, *, rate_std: float = 0.0,
     start, fixed = best.final, _gauge_fixed(result, frames)
     if fixed:  # every constant is the fit of the calibrated path: that path is what limits them
         calibrated = result.calibration
-        x, moves = np.asarray(calibrated["latent"], dtype=float)[frames[0]: frames[1]], []
+        x = np.asarray(calibrated["latent"], dtype=float)[frames[0]: frames[1]]
         start = {n: float(c["refit"]) for n, c in calibrated["constants"].items()}
+        # a pivot's moves, read in the path's units, are changes the map scales as it scales the path
+        maps = calibrated.get("maps") or {}
+        scale = np.array([float((maps.get(s) or {}).get("a", 1.0)) for s in result.states])
+        moves = [m * scale[: m.shape[1]] for m in moves]
     boot = bootstrap(system, params, x, result.dt, start, seed=seed, learned=learned, moves=moves,
                      integrator=str(settings.get("integrator", "rk4")), substeps=int(settings.get("substeps", 1)),
                      pieces=pieces, scatter=recorded.get("scatter") if pieces else None)
     out: dict[str, Interval] = {}
     own = set(result.meta.get("own_units", ()))
     # an angle's pivot moved by its uncertainty carries its scale too: the scale share is for what has no moves
-    scale_std = 0.0 if moves else float((result.meta.get("measurement") or {}).get("scale_error") or 0.0)
+    # (and where the calibration sets the path's scale, the measurement's own scale says nothing)
+    scale_std = 0.0 if moves or fixed else float((result.meta.get("measurement") or {}).get("scale_error") or 0.0)
     scale_std = scale_std if math.isfinite(scale_std) else 0.0
     for name, est in result.parameters.items():
         if boot is None or name not in boot.values:
