@@ -150,6 +150,10 @@ def test_a_wide_interval_names_the_share_that_carries_it():
     v = _judged(ruled).verdicts["k"]
     assert v.verdict == "ambiguous" and "pins it only to +-4.3%" in v.reason
     assert "most of it (+-3.7%) is the scale given: a longer ruler in view" in v.reason
+    # a drain calibrated at two times, no ruler: the share is the points' reading, and the reason says so
+    ruled.calibration = {"maps": {"h": {"a": 0.002, "b": 0.2}}}
+    v = _judged(ruled).verdicts["k"]
+    assert "most of it (+-3.7%) is the path's reading at the --calibrate points" in v.reason and "ruler" not in v.reason
     even = _result([_run(0, 4.0), _run(1, 4.0)])
     even.parameters["k"].interval = [4.0 * 0.957, 4.0 * 1.043]
     even.checks["interval"] = {"shares": {"k": {"residuals": 0.06, "calibration": 0.06}}}
