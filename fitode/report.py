@@ -282,7 +282,9 @@ def run_lines(result) -> list[str]:
     for r in result.runs:
         mark = "*" if r.index == result.best else ("+" if r.index in result.selected else " ")
         consts = " ".join(f"{k}={v:.5g}" for k, v in r.final.items())
-        state = ("settled" if r.converged else "step limit" if r.status == "ok" else
+        # a path fitted directly has its solver's own iterations, not training steps to a limit
+        limit = "not settled" if result.meta.get("direct") else "step limit"
+        state = ("settled" if r.converged else limit if r.status == "ok" else
                  r.error or r.status if r.status == "interrupted" else "failed: " + (r.error or "?"))
         score = f"score {r.score:5.2f}" if r.score is not None else "score   -  "
         lines.append(f"run {r.index + 1:>2}{mark} {r.steps:>5} steps  loss {r.loss:.4g}  {score}  "

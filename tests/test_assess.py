@@ -58,6 +58,11 @@ def test_restarts_that_all_stopped_at_the_step_limit_are_not_trusted_even_when_s
     assert a.verdicts["k"].verdict == "ambiguous" and "step limit" in a.verdicts["k"].reason
     one_settled = _judged(_result([_run(0, 4.0, converged=False), _run(1, 4.0)]))
     assert one_settled.verdicts["k"].verdict == "trusted"
+    # a path fitted directly has its solver's iterations, which --max-steps does not set: no such advice
+    direct = _judged(_result([_run(0, 4.0, converged=False, moving=0.1), _run(1, 4.0, converged=False)], direct=True))
+    reason = direct.verdicts["k"].reason
+    assert direct.verdicts["k"].verdict == "ambiguous" and "fit of the measured path settled" in reason
+    assert "--max-steps" not in reason and "step limit" not in reason
 
 
 def test_a_best_run_only_constant_is_judged_on_the_best_run_settling():

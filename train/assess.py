@@ -11,7 +11,9 @@ judged with the whole run in view, each rule with one threshold:
   fits its latent about as well (RIVAL_MISS) but ended elsewhere makes the estimate ambiguous
   (selection.rivals; the interval reaches the farthest of them);
 - settling: an estimate whose restarts all stopped at the step limit is ambiguous, and says how
-  far it still moved over its last MOTION_STEPS steps;
+  far it still moved over its last MOTION_STEPS steps (a path fitted directly: whose solver did
+  not settle, and how far it moved from the windows' fit to the whole path's; the fit of a
+  calibrated path whose zero the calibration sets is judged on none of the restarts);
 - an interrupted run is ambiguous: its estimates come from unfinished training;
 - the interval (fitode.train.interval, made before the assessment): where none could be made, or
   where the equation fitted without the clip's last quarter misses it by more than HELD_OUT_MAX
@@ -100,7 +102,7 @@ def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iter
             mine += _rivals(name, result)
         mine += _precision(name, result.parameters[name], _shares(result, name), _points_only(result))
         if not interrupted and name not in refitted:
-            mine += _settling(name, sources, int(result.settings.get("max_steps", 0)))
+            mine += _settling(name, sources, int(result.settings.get("max_steps", 0)), bool(result.meta.get("direct")))
         everything += mine
         found += mine
         found.sort(key=lambda f: -LEVELS.index(f.level))  # stable: the checks' own order within a level
@@ -274,10 +276,18 @@ def _shown(run, name: str) -> str:
     return f"{final:.4g}" if aligned == final else f"{final:.4g} ({aligned:.4g} with its latent turned round)"
 
 
-def _settling(name: str, sources, max_steps: int) -> list[Finding]:
-    """No restart the estimate comes from settled: it stopped at the step limit, still moving."""
+def _settling(name: str, sources, max_steps: int, direct: bool = False) -> list[Finding]:
+    """No restart the estimate comes from settled: it stopped at the step limit, still moving.
+    direct: the measured path was fitted directly (train/direct.py), whose solver has iterations
+    of its own that --max-steps does not set: its restarts' two steps are the windows' fit and the
+    whole path's, and that says so."""
     if not sources or any(r.converged for r in sources):
         return []
+    if direct:
+        moved = [m for m in (_motion(r, name) for r in sources) if m is not None]
+        how = f" (it moved {100 * min(moved):.2g}% from the windows' fit to the whole path's)" if moved else ""
+        return [Finding("ambiguous", "no restart's fit of the measured path settled within its solver's iterations"
+                        + how + ": the path may hold it only loosely", (name,))]
     moved = [m for m in (_motion(r, name) for r in sources) if m is not None]
     how = f"; it moved {100 * min(moved):.2g}% over the last {MOTION_STEPS} steps" if moved else ""
     return [Finding("ambiguous", f"no restart it comes from settled before the step limit ({max_steps} steps){how}; "
