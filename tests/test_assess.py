@@ -5,6 +5,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from fitode.train.assess import assess
+from fitode.train.history import History
 from fitode.train.result import Estimate, FitResult, RunRecord
 from fitode.train.selection import selection
 from fitode.train.findings import Finding
@@ -59,9 +60,14 @@ def test_restarts_that_all_stopped_at_the_step_limit_are_not_trusted_even_when_s
     one_settled = _judged(_result([_run(0, 4.0, converged=False), _run(1, 4.0)]))
     assert one_settled.verdicts["k"].verdict == "trusted"
     # a path fitted directly has its solver's iterations, which --max-steps does not set: no such advice
-    direct = _judged(_result([_run(0, 4.0, converged=False, moving=0.1), _run(1, 4.0, converged=False)], direct=True))
+    # (its history: the start, the windows' fit and the whole path's fit, 10% and 20% apart)
+    runs = [_run(0, 4.0, converged=False), _run(1, 4.0, converged=False)]
+    for run, screen in zip(runs, (4.4, 4.8)):
+        run.history = History.from_dict(_history([1.0, screen, 4.0]))
+    direct = _judged(_result(runs, direct=True))
     reason = direct.verdicts["k"].reason
     assert direct.verdicts["k"].verdict == "ambiguous" and "fit of the measured path settled" in reason
+    assert "moved 10% from the windows' fit to the whole path's" in reason
     assert "--max-steps" not in reason and "step limit" not in reason
 
 

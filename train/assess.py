@@ -283,8 +283,9 @@ def _settling(name: str, sources, max_steps: int, direct: bool = False) -> list[
     whole path's, and that says so."""
     if not sources or any(r.converged for r in sources):
         return []
-    if direct:
-        moved = [m for m in (_motion(r, name) for r in sources) if m is not None]
+    if direct:  # its history: the start, the windows' fit, the whole path's fit
+        moved = [abs(h[-1] - h[-2]) / max(abs(h[-1]), 1e-12) for h in (r.history.constants.get(name, []) for r in sources)
+                 if len(h) >= 3]
         how = f" (it moved {100 * min(moved):.2g}% from the windows' fit to the whole path's)" if moved else ""
         return [Finding("ambiguous", "no restart's fit of the measured path settled within its solver's iterations"
                         + how + ": the path may hold it only loosely", (name,))]
