@@ -417,17 +417,19 @@ def _fixes_zero(result, system, maps: Mapping[str, AffineMap], x: np.ndarray, fi
     of its own (a level moving 5 pixels bends too little to tell them apart); the two points fix
     the zero, and the fit of the path they calibrate gave k 0.9% from the truth with +-1.7% (a
     generated drain of the coverage bench), where the restarts' spread made it +-44%."""
-    from fitode.eqparse.system import deriv_symbol
-
     trajectory = result.meta.get("trajectory") if isinstance(result.meta.get("trajectory"), Mapping) else {}
     if fitted is None or not result.meta.get("direct") or trajectory.get("pieces"):
         return False
-    for s, m in maps.items():
-        col = x[:, list(result.states).index(s)]
-        reads = any(rhs.has(deriv_symbol(s, 0)) for rhs in system.rhs.values())
-        if reads and abs(m.b) > OFFSET_TOL * max(float(np.max(np.abs(col))), 1e-300):
-            return True
-    return False
+    return any(_offset_matters(system, s, m, x[:, list(result.states).index(s)]) for s, m in maps.items())
+
+
+def _offset_matters(system, state: str, m: AffineMap, column: np.ndarray) -> bool:
+    """Whether the map's offset moves constants: the equation reads the state's value (not only
+    its derivatives) and the offset is beyond OFFSET_TOL of the calibrated column's range."""
+    from fitode.eqparse.system import deriv_symbol
+
+    reads = any(rhs.has(deriv_symbol(state, 0)) for rhs in system.rhs.values())
+    return reads and abs(m.b) > OFFSET_TOL * max(float(np.max(np.abs(column))), 1e-300)
 
 
 NEAR_ONE = 0.1  # a map whose scale is within this of 1 (either sign) calibrates a reading already in its units
@@ -471,7 +473,6 @@ def map_factors(system, maps: Mapping[str, AffineMap], x: np.ndarray, states: Se
     the offset moves constants too, and only a fit can tell)."""
 
     from fitode.eqparse.identify import scale_exponents
-    from fitode.eqparse.system import deriv_symbol
 
     powers = scale_exponents(system)
     factors: dict[str, float | None] = {}
@@ -482,10 +483,7 @@ def map_factors(system, maps: Mapping[str, AffineMap], x: np.ndarray, states: Se
             p = None if exps is None else exps.get(s, 0.0)
             if p == 0.0:
                 continue
-            reads = any(rhs.has(deriv_symbol(s, 0)) for rhs in system.rhs.values())
-            col = x[:, list(states).index(s)]
-            offset_free = not reads or abs(m.b) <= OFFSET_TOL * max(float(np.max(np.abs(col))), 1e-300)
-            if p is None or not offset_free or (m.a < 0 and p != int(p)):
+            if p is None or _offset_matters(system, s, m, x[:, list(states).index(s)]) or (m.a < 0 and p != int(p)):
                 factor = None
                 break
             factor *= abs(m.a) ** p * (-1.0 if m.a < 0 and int(p) % 2 else 1.0)

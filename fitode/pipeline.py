@@ -405,7 +405,6 @@ def level_in_detail(video, read: ReadOptions, req, clip, t0: float, plan, *, pro
     own size where smaller) where the plan reads a level from shrunk frames: the level is read as
     a fraction of a row, and more rows read it finer. Not where the user gave --size, --roi or a
     mask (the frames are then theirs), nor where the frames read again show no level."""
-    from fitode import api
     from fitode.train.observe.level import LevelObservation, read_level
 
     if read.roi is not None or read.mask is not None or not _reads(plan, LevelObservation):
