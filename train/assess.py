@@ -90,6 +90,7 @@ def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iter
     # one fit of the calibrated path (fitode.calibrate._fixes_zero): the restarts differ only in the
     # zero the calibration sets, so their agreement, rivals and settling say nothing of it
     refitted = set((result.calibration or {}).get("gauge_fixed") or ()) if calibrated else set()
+    points_only = _points_only(result)
     verdicts: dict[str, Verdict] = {}
     everything: list[Finding] = list(measured)
     for name in result.parameters:
@@ -100,7 +101,7 @@ def assess(result, analysis=None, *, calibrated: Iterable[str] = (), extra: Iter
         if name not in refitted:
             mine += _agreement(name, value, sources)
             mine += _rivals(name, result)
-        mine += _precision(name, result.parameters[name], _shares(result, name), _points_only(result))
+        mine += _precision(name, result.parameters[name], _shares(result, name), points_only)
         if not interrupted and name not in refitted:
             mine += _settling(name, sources, int(result.settings.get("max_steps", 0)), bool(result.meta.get("direct")))
         everything += mine
