@@ -263,7 +263,7 @@ def test_the_apparent_radius_of_a_disc_that_recedes_partly_outside_the_frame():
     assert np.median(miss) < 0.3 and miss.max() < 1.5, miss
 
 
-def _fall_radii(seed: int):
+def _fall_radii(seed: int, folder: Path):
     """A generated ball falling away from the camera (135x240, H.264) read in colour at its source
     size: the true apparent radii, and per reading (the outline in colour, the ring of change alone
     in gray: the mean of the channels) the radii measured and g from a parabola through 1/r
@@ -271,9 +271,8 @@ def _fall_radii(seed: int):
     from fitode import api
     from fitode.pipeline import ReadOptions, read_clip
     from fitode.train.observe.extent import apparent_radii
-    import tempfile
     v = synth.scene("free_fall", 0.05, size=(135, 240), seed=seed)
-    path = synth.write_video(v, Path(tempfile.mkdtemp(prefix="fitode-fall-")) / "fall.mp4")
+    path = synth.write_video(v, folder / f"fall{seed}.mp4")
     clip, _ = read_clip(path, ReadOptions(size="240x135", color=True, stride=1))
     frames = api.as_frames(clip.frames)
     ph, idx = v.meta["physical"], clip.frame_indices
@@ -286,12 +285,12 @@ def _fall_radii(seed: int):
     return ph["r0"] * ph["f_px"] / dist, out
 
 
-def test_the_outline_of_a_falling_ball_is_where_it_is_not_where_its_ring_of_change_leans():
+def test_the_outline_of_a_falling_ball_is_where_it_is_not_where_its_ring_of_change_leans(tmp_path):
     # the ring of change leans out where the ball's dark limb changes more than its face (g +2.2%,
     # +1.2%, +6.0% on these three, read in gray); its outline in colour: +0.2%, -0.5%, +0.9%
     outline, ring = [], []
     for seed in range(3):
-        truth, read = _fall_radii(seed)
+        truth, read = _fall_radii(seed, tmp_path)
         assert np.sqrt(np.mean((read["outline"][0] / truth - 1) ** 2)) < 0.012
         outline.append(abs(read["outline"][1] / 9.80665 - 1))
         ring.append(abs(read["ring"][1] / 9.80665 - 1))
