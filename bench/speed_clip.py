@@ -127,6 +127,8 @@ def _driver(argv: list[str]) -> int:
     try:
         code = main(argv)
     finally:
+        import gc
+        gc.freeze()  # as the command's own entry (fitode.cli.entry) leaves its process
         done = time.time()
         launch = float(os.environ.get("SPEED_CLIP_LAUNCH", entered))
         # start-up: the launch to the first stage (Python, the imports, the flags)

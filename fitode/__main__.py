@@ -1,5 +1,5 @@
 import sys
 
-from fitode.cli import main
+from fitode.cli import entry
 
-sys.exit(main())
+sys.exit(entry())
