@@ -289,3 +289,55 @@ def test_the_fit_refines_the_angles_zero_where_the_equation_pins_it():
     assert whole_clip_check(system, params, state, dt, refined.values, config)[0] is None
     free = parse("theta'' = -k*theta'")  # its zero is free: nothing to refine
     assert not AngleObservation().gauge_plan(gauge_plan(free))["theta"].offset_learned
+
+
+def _string_and_bob(inner_share=0.7, seed=0, n=300):
+    """A swing whose point is the bob (radius 100) in some frames and the string's middle (radius
+    48-52, its direction 0.01 rad off at most) in the rest, about a pivot at (120, 10)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 60
+    theta = 0.9 * np.exp(-0.05 * t) * np.cos(2.8 * t)
+    inner = rng.random(n) < inner_share
+    radius = np.where(inner, rng.uniform(48, 52, n), 100.0)
+    angle = theta + np.where(inner, rng.normal(0, 0.005, n), 0.0)
+    xy = np.column_stack([120 + radius * np.sin(angle), 10 + radius * np.cos(angle)]) + rng.normal(0, 0.2, (n, 2))
+    return xy, inner, theta
+
+
+@pytest.mark.parametrize("share", [0.3, 0.7])
+def test_a_swing_read_on_its_string_in_some_frames_is_carried_out_to_its_bobs_arc(share):
+    from fitode.train.observe.circle import on_one_radius
+    xy, inner, theta = _string_and_bob(share)
+    assert fit_circle(xy).scatter > 10  # one circle through both: no angle from it
+    out, carried, strays = on_one_radius(xy)
+    assert carried == inner.sum() and strays == 0
+    c = fit_circle(out)
+    assert np.hypot(c.centre[0] - 120, c.centre[1] - 10) < 0.5 and c.radius == pytest.approx(100, rel=0.005)
+    read = np.arctan2(out[:, 0] - c.centre[0], out[:, 1] - c.centre[1])
+    assert np.abs(read - theta).max() < 0.03
+
+
+def test_a_path_on_one_arc_or_inner_points_of_their_own_are_left_as_they_are():
+    from fitode.train.observe.circle import on_one_radius
+    xy, _ = _swing()
+    out, carried, strays = on_one_radius(xy)
+    assert (carried, strays) == (0, 0) and np.array_equal(out, xy)
+    xy, inner, _ = _string_and_bob(0.5)
+    rng = np.random.default_rng(1)
+    xy[inner] = rng.uniform([70, 20], [170, 60], (inner.sum(), 2))  # something else, not the string
+    assert on_one_radius(xy)[1:] == (0, 0)
+    xy, inner, _ = _string_and_bob(0.2)
+    xy[100:110] = [120.0, 14.0]  # ten frames by the pivot in a row: too long to read from neighbours
+    assert on_one_radius(xy)[1:] == (0, 0)
+
+
+def test_a_light_bob_on_a_light_wall_is_read_on_its_string_where_the_change_loses_it(tmp_path):
+    # the coverage bench's clip (seed 10, clip 3): the change is the string's in 73% of the frames;
+    # one circle through both bowed 1.9x its scatter, the auto choice fell to the free encoder
+    v = synth.scene("pendulum", 1.2925247, theta0_deg=53.83, zeta=0.0947, duration=3.435, size=(135, 240),
+                    noise=1.364, seed=10002)
+    path = synth.write_video(v, tmp_path / "swing.mp4")
+    result = fitode.fit(str(path), system="pendulum")
+    assert result.meta["plan"]["observation"]["value"] == "angle"
+    assert "nearer the pivot along the swing's direction" in result.meta["subspace"]
+    assert result.parameters["L"].value == pytest.approx(1.2925247, rel=0.005)

@@ -10,7 +10,7 @@ import torch
 from fitode.errors import ConfigError
 
 from .base import MeasuredObservation, ObservationModel, Prepared
-from .circle import Circle, fit_circle
+from .circle import Circle, fit_circle, on_one_radius
 from .tracking import MEND_PIXELS, MEND_SIGMAS, MENDED_MAX, centroids, mend_strays
 
 BENDS = 2.0  # sagitta over scatter under which a path does not bend about any centre (ConfigError)
@@ -66,6 +66,7 @@ class AngleObservation(MeasuredObservation):
         n = int(frames.shape[0])
         n_fit = n if fit_frames is None else int(fit_frames)
         xy, where = self.path(frames, fit_frames)
+        xy, carried, strays = on_one_radius(xy)
         xy, mended = _mended_off_the_arc(xy, n_fit)
         circle = fit_circle(xy[:n_fit])
         if circle is None or circle.bend < BENDS:
@@ -77,6 +78,12 @@ class AngleObservation(MeasuredObservation):
                 f"{circle.radius:.1f} pixels (scatter {circle.scatter:.2f}, the arc bows {circle.sagitta:.1f}), in "
                 f"radians from the direction it hangs in; swings up to {np.degrees(np.abs(theta[:n_fit]).max()):.0f} degrees")
         caution = _caution(circle, float(np.abs(theta[:n_fit]).max())) if self.scale_matters else None
+        if carried:
+            note += (f"; in {carried} frame{'s' if carried != 1 else ''} the point was nearer the pivot along the "
+                     "swing's direction (the string, where the change lost the bob), read in its direction from the pivot")
+        if strays:
+            note += (f"; {strays} frame{'s' if strays != 1 else ''} inside the arc off that direction read from "
+                     "their neighbours")
         if mended:
             note += f"; {mended} frame{'s' if mended != 1 else ''} off the path of the neighbours read from them"
             if mended > MENDED_MAX * n_fit:

@@ -19,7 +19,7 @@ from .angle import AngleObservation
 from .base import ObservationModel
 from .brightness import BrightnessObservation
 from .catalog import AUTO, model_class, parse_observe, split_object
-from .circle import Circle, fit_circle
+from .circle import Circle, fit_circle, on_one_radius
 from .level import Level, LevelObservation, read_level
 from .position import PositionObservation, axis_of
 from .subspace import SUBSPACE_JUMP
@@ -218,7 +218,7 @@ class Look:
     def arc(self) -> Circle | None:
         """The circle the path bends about (circle, or fitted now to the points kept in bent)."""
         if self.circle is None and self.bent is not None:
-            self.circle, self.bent = fit_circle(self.bent), None
+            self.circle, self.bent = fit_circle(on_one_radius(self.bent)[0]), None
         return self.circle
 
     @property
@@ -271,14 +271,16 @@ def look(frames: torch.Tensor, track: Track | None = None) -> Look:
     if track is not None and track.unseen < 0.1 * len(track):
         # the same look at the source's resolution: the shrunk frames' centroids say whether
         # something moves, the track how its path runs and bends
-        full = torch.from_numpy(track.filled())
+        # (a pendulum's string where the change lost its bob: the frames on an inner arc carried out)
+        filled = on_one_radius(track.filled())[0]
+        full = torch.from_numpy(filled)
         _, path = line_of_motion(full)
         # a track that jumps to something else in some frames (a hand, the floor) looks back and
         # forth; the shrunk frames' centroids of the same clip may still see it run one way
         travel = float(path.max() - path.min())
         seen = Look(seen.travel, seen.size, max(seen.one_way, one_way(path[::step])), gap,
                     run=one_way_run(path.numpy()), followed=travel / max(track.area, 1.0) ** 0.5,
-                    bent=track.filled(), across=straightness(full))
+                    bent=filled, across=straightness(full))
     elif seen.moves:
         seen.bent = xy.double().cpu().numpy()
     return seen
