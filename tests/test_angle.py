@@ -341,3 +341,6 @@ def test_a_light_bob_on_a_light_wall_is_read_on_its_string_where_the_change_lose
     assert result.meta["plan"]["observation"]["value"] == "angle"
     assert "nearer the pivot along the swing's direction" in result.meta["subspace"]
     assert result.parameters["L"].value == pytest.approx(1.2925247, rel=0.005)
+    # the string's direction leans off the bob's: not TRUSTED (L -0.30% +- 0.22% here), and said why
+    assert result.verdicts["L"]["verdict"] != "trusted"
+    assert "read on the string" in result.verdicts["L"]["reason"]
