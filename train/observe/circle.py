@@ -203,21 +203,18 @@ def on_one_radius(xy: np.ndarray) -> tuple[np.ndarray, int, int]:
         return xy, 0, 0
     if one[2] <= ONE_ARC * one[1]:  # on one arc, its few strays the mending's (the bob clip's 1844 frames)
         return xy, 0, 0
-    # one circle through the arc and the points inside it centres between them; about the right
-    # centre a point's direction runs smoothly in time whichever distance it is at
-    centre = _smoothest_centre(pts)
-    outer = _two_means(np.hypot(pts[:, 0] - centre[0], pts[:, 1] - centre[1]))
-    if outer is None:
+    # one circle through the arc and the points inside it centres between them. Two starts: the
+    # centre about which a point's direction runs most smoothly in time whichever distance it is at
+    # (the arc a minority), and the circle through three of the points that most others lie on
+    # (the arc most of them); the tighter arc wins
+    best = None
+    for centre, radius in (_smoothest_centre(pts), None), _consensus_circle(pts):
+        got = _outer_arc(pts, centre, radius)
+        if got is not None and (best is None or got[2] < best[2]):
+            best = got
+    if best is None:
         return xy, 0, 0
-    for _ in range(3):
-        if outer.sum() < max(MIN_SHARE * len(pts), 5):
-            return xy, 0, 0
-        arc = _geometric(pts[outer])
-        if arc is None:
-            return xy, 0, 0
-        centre, radius, scatter, _ = arc
-        d = np.hypot(pts[:, 0] - centre[0], pts[:, 1] - centre[1])
-        outer = np.abs(d - radius) <= NEAR * max(scatter, 1.0)
+    centre, radius, scatter, outer, d = best
     inner = d < radius - NEAR * max(scatter, 1.0)
     if not inner.any() or outer.mean() < MIN_SHARE or scatter * THINNER >= one[2]:
         return xy, 0, 0
@@ -241,6 +238,50 @@ def on_one_radius(xy: np.ndarray) -> tuple[np.ndarray, int, int]:
     out[rows[inner]] = centre + (pts[inner] - centre) * (radius / np.maximum(d[inner], 1e-9))[:, None]
     out[rows[strays]] = centre + radius * np.stack([np.cos(along[strays]), np.sin(along[strays])], axis=1)
     return out, int(inner.sum()), int(strays.sum())
+
+
+def _outer_arc(pts: np.ndarray, centre: np.ndarray, radius: float | None):
+    """The arc the points lie on farthest from `centre` (the larger group of their distances, or
+    those within NEAR pixels of `radius`), fitted alone and its points taken again three times:
+    (centre, radius, scatter, on the arc (T,), distances (T,)), or None."""
+    d = np.hypot(pts[:, 0] - centre[0], pts[:, 1] - centre[1])
+    outer = _two_means(d) if radius is None else np.abs(d - radius) <= NEAR
+    if outer is None:
+        return None
+    for _ in range(3):
+        if outer.sum() < max(MIN_SHARE * len(pts), 5):
+            return None
+        arc = _geometric(pts[outer])
+        if arc is None:
+            return None
+        centre, radius, scatter, _ = arc
+        d = np.hypot(pts[:, 0] - centre[0], pts[:, 1] - centre[1])
+        outer = np.abs(d - radius) <= NEAR * max(scatter, 1.0)
+    return centre, radius, scatter, outer, d
+
+
+TRIES = 200  # circles through three points tried by _consensus_circle
+
+
+def _consensus_circle(pts: np.ndarray) -> tuple[np.ndarray, float]:
+    """The circle through three of the points (TRIES seeded draws) that the most points lie within
+    NEAR pixels of: (centre, radius)."""
+    rng = np.random.default_rng(0)
+    a, b, c = (pts[rng.integers(len(pts), size=TRIES)] for _ in range(3))
+    # the circumcentre of each triple
+    den = 2 * (a[:, 0] * (b[:, 1] - c[:, 1]) + b[:, 0] * (c[:, 1] - a[:, 1]) + c[:, 0] * (a[:, 1] - b[:, 1]))
+    ok = np.abs(den) > 1e-9
+    a2, b2, c2 = (v[:, 0] ** 2 + v[:, 1] ** 2 for v in (a, b, c))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ux = (a2 * (b[:, 1] - c[:, 1]) + b2 * (c[:, 1] - a[:, 1]) + c2 * (a[:, 1] - b[:, 1])) / den
+        uy = (a2 * (c[:, 0] - b[:, 0]) + b2 * (a[:, 0] - c[:, 0]) + c2 * (b[:, 0] - a[:, 0])) / den
+    centres = np.stack([ux, uy], axis=1)[ok]
+    radii = np.hypot(*(a[ok] - centres).T)
+    if not len(centres):
+        return pts.mean(axis=0), None
+    d = np.hypot(pts[None, :, 0] - centres[:, :1], pts[None, :, 1] - centres[:, 1:])
+    i = int(np.argmax((np.abs(d - radii[:, None]) <= NEAR).sum(axis=1)))
+    return centres[i], float(radii[i])
 
 
 GRID = 25  # candidate centres per side of the square the smoothest direction is looked for in
