@@ -313,6 +313,12 @@ def in_view(video, read: ReadOptions, req, clip, t0: float, plan, *, progress: b
             isinstance(p, (PositionObservation, AngleObservation)) and getattr(p, "object", None) is None
             for p in _observation_parts(plan)):
         return clip, t0, plan
+    if any(isinstance(p, AngleObservation) for p in _observation_parts(plan)):
+        # a swing the change reads on its string in some frames jumps between the string and the bob;
+        # read on one arc (as the angle observation reads it), its run of frames is not cut at every
+        # jump, nor its lowest point, near the frame's edge, taken for the bob entering the view
+        from fitode.train.observe.circle import on_one_radius
+        track = replace(track, xy=on_one_radius(track.xy)[0])
     box = clip.roi if clip.roi else (0, 0, clip.source_size[1], clip.source_size[0])
     span = view_span(track, box, start_given=read.start is not None, end_given=read.end is not None)
     if span is None:

@@ -344,3 +344,16 @@ def test_a_light_bob_on_a_light_wall_is_read_on_its_string_where_the_change_lose
     # the string's direction leans off the bob's: not TRUSTED (L -0.30% +- 0.22% here), and said why
     assert result.verdicts["L"]["verdict"] != "trusted"
     assert "read on the string" in result.verdicts["L"]["reason"]
+
+
+def test_a_swing_read_on_its_string_in_some_frames_is_not_taken_for_a_bob_entering_the_view(tmp_path):
+    # the coverage bench's seed-10 clip 58: its lowest point 16 pixels above the frame's edge, the
+    # change on the string in 21 frames; the jumps cut the track's run of frames and its first frame
+    # at the bottom read as the bob entering the view, so the first 1.6 s were dropped (L +0.93%)
+    v = synth.scene("pendulum", 1.182871, theta0_deg=49.76, zeta=0.02694, duration=3.678, size=(135, 240),
+                    noise=1.231, seed=10058)
+    path = synth.write_video(v, tmp_path / "swing.mp4")
+    result = fitode.fit(str(path), system="pendulum")
+    assert result.meta["plan"]["observation"]["value"] == "angle"
+    assert result.time[-1] - result.time[0] > 0.95 * 3.678 and result.meta["stretch"]["start_frame"] == 0
+    assert result.parameters["L"].value == pytest.approx(1.182871, rel=0.005)
