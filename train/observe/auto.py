@@ -216,7 +216,8 @@ class Look:
         return self.travel > self.size and self.gap < SUBSPACE_JUMP
 
     def arc(self) -> Circle | None:
-        """The circle the path bends about (circle, or fitted now to the points kept in bent)."""
+        """The circle the path bends about (circle, or fitted now to the points kept in bent, those
+        on an arc nearer its centre carried out to it: circle.on_one_radius)."""
         if self.circle is None and self.bent is not None:
             self.circle, self.bent = fit_circle(on_one_radius(self.bent)[0]), None
         return self.circle
@@ -271,8 +272,7 @@ def look(frames: torch.Tensor, track: Track | None = None) -> Look:
     if track is not None and track.unseen < 0.1 * len(track):
         # the same look at the source's resolution: the shrunk frames' centroids say whether
         # something moves, the track how its path runs and bends
-        # (a pendulum's string where the change lost its bob: the frames on an inner arc carried out)
-        filled = on_one_radius(track.filled())[0]
+        filled = track.filled()
         full = torch.from_numpy(filled)
         _, path = line_of_motion(full)
         # a track that jumps to something else in some frames (a hand, the floor) looks back and
