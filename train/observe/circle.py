@@ -263,9 +263,9 @@ def _outer_arc(pts: np.ndarray, centre: np.ndarray, radius: float | None):
 TRIES = 200  # circles through three points tried by _consensus_circle
 
 
-def _consensus_circle(pts: np.ndarray) -> tuple[np.ndarray, float]:
+def _consensus_circle(pts: np.ndarray) -> tuple[np.ndarray, float | None]:
     """The circle through three of the points (TRIES seeded draws) that the most points lie within
-    NEAR pixels of: (centre, radius)."""
+    NEAR pixels of: (centre, radius); (their mean, None) where every draw lies on a line."""
     rng = np.random.default_rng(0)
     a, b, c = (pts[rng.integers(len(pts), size=TRIES)] for _ in range(3))
     # the circumcentre of each triple

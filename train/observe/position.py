@@ -180,9 +180,8 @@ class PositionObservation(MeasuredObservation):
         for s, g in plan.items():
             if g.zero_pinned and not g.offset_learned and not g.scale_learned:
                 out[s] = StateGauge(s, False, True, g.positive,
-                                    g.reason.replace("it swings about 0 like the latent", "its zero") +
-                                    " (the equilibrium) refined by the fit: the reading's zero is the path's mean",
-                                    True)
+                                    "its scale is free; its zero (the equilibrium) refined by the fit: the "
+                                    "reading's zero is the path's mean", True)
         return out
 
     def applies(self, check: str) -> bool:
