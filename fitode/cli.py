@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
             return 128 + signal.SIGTERM if term else 130
 
 
-def entry() -> int:
+def entry(argv: list[str] | None = None) -> int:
     """The process's entry (the `fitode` command and `python -m fitode`): main, then the objects it
     leaves frozen out of the collector, so that the interpreter's teardown does not walk every
     object torch, sympy and matplotlib made (about a second of a short run's wall time on this
@@ -113,9 +113,9 @@ def entry() -> int:
     runs less often meanwhile: the imports alone made 700 of a short run's collections at the
     default threshold (0.6 s of its 7 s), 50 at this one (0.25 s), with the same peak memory on the
     README's example. Not in main: a caller that runs main many times in one process (the tests)
-    keeps its collector as it set it."""
+    keeps its collector as it set it; bench/speed_clip.py times a process run through here."""
     gc.set_threshold(10_000, 20, 20)
-    code = main()
+    code = main(argv)
     gc.freeze()
     return code
 
