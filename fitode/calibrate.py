@@ -5,7 +5,8 @@ of a state (`--calibrate "h(0)=0.07; h(25)=0.01"`, times in seconds of the video
 frame rate, as latent.png's time axis shows them), fitode
 
 1. fits the affine map x = a*z + b from the best run's encoded latent z (a quadratic through
-   the frames within three of each time: see local_value) to the known values, by least
+   the frames within three of each time: see local_value; for a measured path fitted directly,
+   through its fitted trajectory there: see point_readings) to the known values, by least
    squares, per calibrated state;
 2. maps each constant through it: reading a state x as a*x, the equation holds again with each
    constant c times a**p, the power p found from the equation itself
@@ -119,15 +120,48 @@ def check_times(points: Sequence[CalibrationPoint], t_first: float, t_last: floa
                                    f"{t_first:.4g} s to {t_last:.4g} s")
 
 
+def point_readings(points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.ndarray,
+                   state: str, states: Sequence[str], fitted: np.ndarray | None = None) -> np.ndarray:
+    """The latent z at each of the state's points (in their order): local_value of the fitted
+    trajectory where one was fitted to the measured path and covers the point's frames (fitted:
+    (T, k), NaN outside its stretch or pieces), else of the latent itself. A measured reading errs
+    slowly, and a few frames at a point carry that error into the whole scale (a generated drain's
+    level, read 0.2 px RMS off over a travel of 22 px: the two ends' local readings made the scale
+    5% large and k +5.7% TRUSTED, where the trajectory through every frame gave it within 0.03%
+    and k +0.1%)."""
+    time = np.asarray(time, dtype=float)
+    col = list(states).index(state)
+    raw = np.asarray(latent, dtype=float)[:, col]
+    on = on_trajectory(points, time, fitted, state, states)
+    smooth = raw if fitted is None else np.asarray(fitted, dtype=float)[:, col]
+    mine = [p for p in points if p.state == state]
+    return np.array([local_value(time, smooth if o else raw, p.time) for p, o in zip(mine, on)])
+
+
+def on_trajectory(points: Sequence[CalibrationPoint], time: np.ndarray, fitted: np.ndarray | None, state: str,
+                  states: Sequence[str]) -> list[bool]:
+    """Whether each of the state's points is read on the fitted trajectory (point_readings): it
+    covers every frame the point's local quadratic takes."""
+    mine = [p for p in points if p.state == state]
+    if fitted is None:
+        return [False] * len(mine)
+    column = np.asarray(fitted, dtype=float)[:, list(states).index(state)]
+    out = []
+    for p in mine:
+        i = int(np.clip(np.searchsorted(time, p.time), 0, len(time) - 1))
+        out.append(bool(np.all(np.isfinite(column[max(0, i - LOCAL_HALF_WIDTH):i + LOCAL_HALF_WIDTH + 1]))))
+    return out
+
+
 def fit_affine(points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.ndarray,
-               states: Sequence[str]) -> dict[str, AffineMap]:
-    """Least-squares x = a*z + b per calibrated state, z interpolated at the points' times."""
+               states: Sequence[str], fitted: np.ndarray | None = None) -> dict[str, AffineMap]:
+    """Least-squares x = a*z + b per calibrated state, z read at the points' times (point_readings)."""
     time = np.asarray(time, dtype=float)
     maps: dict[str, AffineMap] = {}
     for state in dict.fromkeys(p.state for p in points):
         col = list(states).index(state)
         mine = [p for p in points if p.state == state]
-        z = np.array([local_value(time, np.asarray(latent, dtype=float)[:, col], p.time) for p in mine])
+        z = point_readings(points, time, latent, state, states, fitted)
         v = np.array([p.value for p in mine])
         spread = float(np.ptp(latent[:, col])) or 1.0
         if np.ptp(z) < 1e-6 * spread:
@@ -141,20 +175,22 @@ def fit_affine(points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.
 
 
 def scale_uncertainty(points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.ndarray,
-                      states: Sequence[str], maps: Mapping[str, AffineMap]) -> dict[str, float]:
+                      states: Sequence[str], maps: Mapping[str, AffineMap],
+                      fitted: np.ndarray | None = None) -> dict[str, float]:
     """The relative standard deviation of each map's scale a: from the points' uncertainties
     (the least-squares a is linear in the values, so its variance is the values' variances
     carried through the fit's weights), and from the latent's own reading at the points (the
     local quadratic's standard error there, local_std: a noisy measured latent at a clip's end,
     where points are usually put, moves the whole scale; the fall's 30 frames: 2.5%), carried
-    through a's derivative with respect to each reading."""
+    through a's derivative with respect to each reading (the latent's own scatter also where the
+    points are read from a fitted trajectory, whose error there it does not undercut)."""
     time = np.asarray(time, dtype=float)
     out: dict[str, float] = {}
     for state, m in maps.items():
         col = list(states).index(state)
         column = np.asarray(latent, dtype=float)[:, col]
         mine = [p for p in points if p.state == state]
-        z = np.array([local_value(time, column, p.time) for p in mine])
+        z = point_readings(points, time, latent, state, states, fitted)
         values = np.array([p.value for p in mine])
         A = np.stack([z, np.ones_like(z)], axis=1)
         weights = np.linalg.pinv(A)[0]  # a = weights @ values
@@ -227,6 +263,7 @@ class Calibration:
     loss: float
     time_offset: float = 0.0
     notes: list[str] = field(default_factory=list)
+    on_trajectory: list[bool] = field(default_factory=list)  # per point: read on the fitted trajectory
 
     def ylabels(self, states: Sequence[str]) -> list[str]:
         """Plot axis labels: a calibrated state is in the units its --calibrate values were given in."""
@@ -274,7 +311,9 @@ class Calibration:
     def lines(self) -> list[str]:
         out = ["calibration: " + "; ".join(f"{s} = {m.a:.6g}*latent + {m.b:.6g}"
                                             + (f" (rms {m.rms:.3g} over {m.n_points} points)" if m.n_points > 2 else "")
-                                            for s, m in self.maps.items())]
+                                            for s, m in self.maps.items())
+                            + (" (the points read on the fitted trajectory)" if self.on_trajectory
+                               and all(self.on_trajectory) else "")]
         for name, c in self.constants.items():
             if c["converted"]:
                 how = "mapped" if c["mapped"] is not None else "fitted"
@@ -293,7 +332,9 @@ class Calibration:
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "points": [{"state": p.state, "time": p.time, "value": p.value, "std": p.std} for p in self.points],
+            "points": [{"state": p.state, "time": p.time, "value": p.value, "std": p.std,
+                        "read_on": "the fitted trajectory" if on else "the latent"}
+                       for p, on in zip(self.points, self.on_trajectory or [False] * len(self.points))],
             "maps": {s: {"a": m.a, "b": m.b, "n_points": m.n_points, "rms": m.rms} for s, m in self.maps.items()},
             "constants": self.constants,
             "refit_loss": self.loss,
@@ -337,7 +378,14 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     time = np.asarray(result.time, dtype=float) + time_offset
     check_times(points, float(time[0]), float(time[-1]), slack=0.5 * float(result.dt))
     latent = np.asarray(result.latent, dtype=float)
-    maps = fit_affine(points, time, latent, result.states)
+    # the run's own fitted trajectory (its stretch, each of its pieces, nothing outside them)
+    fitted_path = np.asarray(result.rollout, dtype=float) if result.rollout is not None else None
+    if fitted_path is not None and fitted_path.shape != latent.shape:
+        fitted_path = None
+    # a measured path fitted directly is read at the points on its trajectory (point_readings); an
+    # encoder's latent, trained to follow its windows' trajectories, as it is
+    on_path = fitted_path if result.meta.get("direct") else None
+    maps = fit_affine(points, time, latent, result.states, on_path)
     x = _mapped(latent, maps, result.states)
     best = next(r for r in result.runs if r.index == result.best).final
     settings = result.settings
@@ -349,7 +397,7 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
         from fitode.train.trajectory import long_options
         options = {**options, "windows": None, **long_options(len(latent))}
     factors = map_factors(system, maps, x, result.states)
-    rel_a = scale_uncertainty(points, time, latent, result.states, maps)
+    rel_a = scale_uncertainty(points, time, latent, result.states, maps, on_path)
     from fitode.eqparse.identify import scale_exponents
     powers = scale_exponents(system)
     scales = {n: _scale(analysis, n) for n in system.learnable}
@@ -360,7 +408,7 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     fitted = _refit(system, params, x[first:last], result.dt, best, mapped_best, maps, options, seed)
     measured = _scale_powers(system, params, x[first:last], result.dt, fitted, maps, options, powers)
     reading = _reading_share(system, params, points, time, latent, result.states, maps, fitted, (first, last),
-                             result.dt, options, [n for n, f in factors.items() if f is None])
+                             result.dt, options, [n for n, f in factors.items() if f is None], on_path)
     constants: dict[str, dict[str, Any]] = {}
     notes: list[str] = []
     zeroed = _fixes_zero(result, system, maps, x, fitted)
@@ -397,16 +445,17 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
                          "how the reading bends), and the interval carries the difference")
             constants[name]["relative_std"] = math.hypot(constants[name]["relative_std"], moved)
     best_after = {n: mapped_best.get(n, fitted.values[n] if fitted is not None else best[n]) for n in system.learnable}
-    # the run's own fitted trajectory (its stretch, each of its pieces, nothing outside them), mapped
-    # as its path is: a rollout from the clip's first frames ran a held pendulum's swing 0.2 rad
-    # off its data in track.csv, and a dropped ball's through the floor
-    fitted_path = np.asarray(result.rollout, dtype=float) if result.rollout is not None else None
-    if fitted_path is not None and fitted_path.shape == latent.shape:
+    # the run's own fitted trajectory, mapped as its path is: a rollout from the clip's first frames
+    # ran a held pendulum's swing 0.2 rad off its data in track.csv, and a dropped ball's through the floor
+    if fitted_path is not None:
         rollout = _mapped(fitted_path, maps, result.states)
     else:
         rollout = _rollout(system, params, x, result.dt, best_after, settings)
     loss = fitted.misfit ** 2 if fitted is not None else math.nan
-    return Calibration(list(points), maps, constants, x, rollout, loss, time_offset, notes)
+    states = list(result.states)
+    read = {s: iter(on_trajectory(points, time, on_path, s, states)) for s in maps}
+    return Calibration(list(points), maps, constants, x, rollout, loss, time_offset, notes,
+                       [next(read[p.state]) for p in points])
 
 
 def _fixes_zero(result, system, maps: Mapping[str, AffineMap], x: np.ndarray, fitted) -> bool:
@@ -560,7 +609,8 @@ def _scale_powers(system, params, x: np.ndarray, dt: float, fitted, maps: Mappin
 
 def _reading_share(system, params, points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.ndarray,
                    states: Sequence[str], maps: Mapping[str, AffineMap], fitted, frames: tuple[int, int],
-                   dt: float, options: Mapping[str, Any], names: Sequence[str]) -> dict[str, float]:
+                   dt: float, options: Mapping[str, Any], names: Sequence[str],
+                   on_path: np.ndarray | None = None) -> dict[str, float]:
     """The relative std that the latent's reading at the points gives each constant refitted after
     the map (no pure power: the drain's k, which the map's offset moves as well as its scale).
     Each point's reading is moved by its error, the map fitted again and the calibrated path
@@ -580,7 +630,7 @@ def _reading_share(system, params, points: Sequence[CalibrationPoint], time: np.
         return {}
     slow = float(np.sqrt(np.mean(np.convolve(res, np.ones(width) / width, mode="valid") ** 2)))
     mine = [p for p in points if p.state == state]
-    z = np.array([local_value(time, column, p.time) for p in mine])
+    z = point_readings(points, time, latent, state, states, on_path)
     values = np.array([p.value for p in mine])
     first, last = frames
     var = dict.fromkeys(names, 0.0)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from fitode.calibrate import (CalibrationError, CalibrationPoint, calibrate_result, check_times, fit_affine,
-                              parse_calibration)
+                              local_value, on_trajectory, parse_calibration, point_readings)
 from fitode.eqparse import ParamSpec, parse
 from fitode.train.result import Estimate, FitResult, RunRecord
 
@@ -80,6 +80,24 @@ def test_affine_map_is_least_squares_on_interpolated_latent():
     m = fit_affine(pts, t, z, ["x"])["x"]
     assert m.a == pytest.approx(3, rel=3e-3) and m.b == pytest.approx(2, abs=1e-2)
     assert 0 < m.rms < 0.01 and m.n_points == 3
+
+
+def test_points_are_read_on_the_fitted_trajectory_where_it_covers_them():
+    # a reading that errs slowly (a level locked to its pixels) about the trajectory fitted to it:
+    # a point is read on that trajectory where it covers the point's frames, else on the reading
+    t = np.linspace(0, 10, 101)
+    fitted = (2 * t + 1)[:, None]
+    raw = fitted + 0.3 * np.cos(3 * t)[:, None]
+    fitted[95:] = np.nan  # after the stretch fitted
+    pts = [CalibrationPoint("x", 0.0, 0.0), CalibrationPoint("x", 9.8, 1.0)]
+    assert on_trajectory(pts, t, fitted, "x", ["x"]) == [True, False]
+    z = point_readings(pts, t, raw, "x", ["x"], fitted)
+    assert z[0] == pytest.approx(1.0, abs=1e-9)
+    assert z[1] == pytest.approx(local_value(t, raw[:, 0], 9.8)) and abs(z[1] - (2 * 9.8 + 1)) > 0.05
+    m = fit_affine(pts, t, raw, ["x"], fitted)["x"]
+    assert m.a * z[0] + m.b == pytest.approx(0.0, abs=1e-9) and m.a * z[1] + m.b == pytest.approx(1.0)
+    # without a fitted trajectory (an encoder's latent), both on the reading
+    assert abs(point_readings(pts, t, raw, "x", ["x"])[0] - 1.0) > 0.05
 
 
 def test_affine_map_refuses_a_flat_latent():
