@@ -239,3 +239,24 @@ def test_a_rate_read_through_a_light_curve_the_frames_could_not_tell_reaches_the
     osc = iv.bootstrap(OSC, {}, noisy, DT, {"w2": 4.2, "c": 0.12}, iterations=8)
     w2 = iv.combine(4.0, osc, "w2")
     assert iv._light_curve(w2, osc, "w2", {"told": False}) is w2
+
+
+def test_the_fitted_trajectorys_own_spread_at_the_clips_ends_is_what_its_resamples_give():
+    # a calibration point read on the fitted trajectory (fitode.calibrate.point_readings) is
+    # uncertain by how far that trajectory moves with the path's noise: trajectory_moves' spread at
+    # the first and last frames against the spread of the fitted trajectory over 200 noisy paths,
+    # for noise that hangs together (rho 0.7) as a measured reading's does
+    rng = np.random.default_rng(3)
+    clean = _oscillation(4.0, 0.1)
+    paths = np.stack([clean + _ar1(rng, T, RHO, NOISE) for _ in range(300)])
+    batch = iv._Batch(OSC, {}, clean, DT, "rk4", 1)  # every noisy path fitted at once
+    theta = np.concatenate([[4.0, 0.1], batch.starts(clean)])[None].repeat(len(paths), axis=0)
+    fitted_each = batch.roll(batch.gauss_newton(theta, paths, 6))
+    truth = np.std(fitted_each[:, [0, -1], 0], axis=0)
+    said = []
+    for seed in range(6):
+        fitted, moves = iv.trajectory_moves(OSC, {}, paths[seed], DT, {"w2": 4.0, "c": 0.1}, seed=seed)
+        assert fitted.shape == (T, 1) and moves.shape[1:] == (T, 1) and len(moves) >= 40
+        said.append(np.std(moves[:, [0, -1], 0], axis=0, ddof=1))
+    said = np.median(said, axis=0)
+    assert np.all(said > 0.6 * truth) and np.all(said < 1.7 * truth), (said, truth)

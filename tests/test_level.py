@@ -101,7 +101,8 @@ def test_a_drain_whose_zero_the_calibration_sets_is_judged_on_its_calibrated_pat
     from that path (+-6.8%, most of it the points' readings), not from the restarts' spread
     (+-30%, "the restarts it comes from disagree", before). The points are read on the trajectory
     fitted to every frame: read on the frames at each point (a local quadratic of them), whose
-    level errs slowly, k came out -1.8%."""
+    level errs slowly, k came out -1.8%; and their share of the interval is how far that
+    trajectory moves at them with the path's residuals."""
     v = synth.scene("torricelli", 0.013, size=(180, 320), duration=4.5, noise=1.0, seed=1)
     path = synth.write_video(v, tmp_path / "drain.mp4")
     h = v.latent[:, 0]
@@ -114,6 +115,8 @@ def test_a_drain_whose_zero_the_calibration_sets_is_judged_on_its_calibrated_pat
     assert [p["read_on"] for p in res.calibration["points"]] == ["the fitted trajectory"] * 2
     assert k.value == pytest.approx(0.013, rel=0.005)
     low, high = k.interval
-    assert low <= 0.013 <= high and high - low < 0.2 * k.value
+    # the points' share: how far the fitted trajectory moves there (+-4.4% in all), not how far the
+    # frames at them do (+-6.9%)
+    assert low <= 0.013 <= high and high - low < 0.11 * k.value
     assert "restarts" not in res.verdicts["k"]["reason"]
     assert "one fit of the measured path as calibrated" in res.summary()

@@ -387,28 +387,10 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
         # a refit that runs off overflows on its way to NaN, which is dropped below: not a warning
         with np.errstate(over="ignore", invalid="ignore"):
             batch = _Batch(system, params, x, dt, integrator, substeps, pieces)
-            if not batch.enough():
+            drawn = _resampled(batch, x, values, iterations, seed, refit_iterations)
+            if drawn is None:
                 return None
-            theta0 = np.concatenate([[float(values[n]) for n in batch.names], batch.starts(x)])[None]
-            centre = batch.gauss_newton(theta0, x[None], CENTRE_ITERATIONS)
-            if not np.all(np.isfinite(centre)):
-                return None
-            if len(batch.lengths) > 1:  # each piece weighed by its own noise, and resampled at it
-                rel = batch.weigh_pieces(x - batch.roll(centre)[0])
-                centre = batch.gauss_newton(centre, x[None], CENTRE_ITERATIONS)
-                if not np.all(np.isfinite(centre)):
-                    return None
-            else:
-                rel = np.ones_like(x)
-            fitted = batch.roll(centre)[0]
-            resid = x - fitted
-            block = block_length(resid / rel)
-            rng = np.random.default_rng(seed)
-            targets = np.stack([fitted + resample_blocks(resid / rel, block, rng) * rel for _ in range(iterations)])
-            draws = batch.chord(centre, targets, refit_iterations)
-            draws = draws[np.all(np.isfinite(draws), axis=1)]
-            if len(draws) < max(2, MIN_KEPT * iterations):
-                return None
+            centre, fitted, resid, rel, block, targets, draws = drawn
             stretched = batch.gauss_newton(centre, batch.roll(centre, dt * (1 + TIME_STEP)), refit_iterations)
             scaled = batch.chord(centre, fitted[None] * (1 + SCALE_STEP), refit_iterations)
             held_out, held_null, without = _held_out(system, params, x, dt, centre, integrator, substeps,
@@ -438,6 +420,64 @@ def bootstrap(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping
                      held_out=held_out, held_out_null=held_null,
                      held_out_values={n: float(without[i]) for i, n in enumerate(names)} if without is not None else {},
                      bend=bend, scaling=scaling, geometry=geometry)
+
+
+def _resampled(batch: _Batch, x: np.ndarray, values: Mapping[str, float], iterations: int, seed: int,
+               refit_iterations: int):
+    """The one trajectory fitted to x (T, k) from values and the refits of its moving-block
+    resamples: (centre (1, p), fitted (T, k), residuals, each frame's relative noise, block,
+    the resampled paths, the refits (N, p) that came out finite); None where too few did."""
+    if not batch.enough():
+        return None
+    theta0 = np.concatenate([[float(values[n]) for n in batch.names], batch.starts(x)])[None]
+    centre = batch.gauss_newton(theta0, x[None], CENTRE_ITERATIONS)
+    if not np.all(np.isfinite(centre)):
+        return None
+    if len(batch.lengths) > 1:  # each piece weighed by its own noise, and resampled at it
+        rel = batch.weigh_pieces(x - batch.roll(centre)[0])
+        centre = batch.gauss_newton(centre, x[None], CENTRE_ITERATIONS)
+        if not np.all(np.isfinite(centre)):
+            return None
+    else:
+        rel = np.ones_like(x)
+    fitted = batch.roll(centre)[0]
+    resid = x - fitted
+    block = block_length(resid / rel)
+    rng = np.random.default_rng(seed)
+    targets = np.stack([fitted + resample_blocks(resid / rel, block, rng) * rel for _ in range(iterations)])
+    draws = batch.chord(centre, targets, refit_iterations)
+    draws = draws[np.all(np.isfinite(draws), axis=1)]
+    if len(draws) < max(2, MIN_KEPT * iterations):
+        return None
+    return centre, fitted, resid, rel, block, targets, draws
+
+
+def trajectory_moves(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping[str, float], *,
+                     iterations: int = ITERATIONS, seed: int = 0, integrator: str = "rk4",
+                     substeps: int = 1) -> tuple[np.ndarray, np.ndarray] | None:
+    """How far the one trajectory fitted to the path x (T, k) moves with the path's residuals: the
+    trajectory (T, k), and each refit's (bootstrap's draws, rolled out) difference from it (N, T,
+    k), widened as the constants' spread is (block_bias, leverage). What a reading taken on the
+    fitted trajectory is uncertain by (fitode.calibrate reads its points there). None where it
+    cannot be made."""
+    x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
+    if not np.all(np.isfinite(x)):
+        return None
+    try:
+        with np.errstate(over="ignore", invalid="ignore"):
+            batch = _Batch(system, params, x, dt, integrator, substeps)
+            drawn = _resampled(batch, x, values, iterations, seed, REFIT_ITERATIONS)
+            if drawn is None:
+                return None
+            centre, fitted, resid, _, block, _, draws = drawn
+            rolled = batch.roll(draws)
+    except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError, FitodeError):
+        return None
+    rolled = rolled[np.all(np.isfinite(rolled), axis=(1, 2))]
+    if len(rolled) < 2:
+        return None
+    rho = correlation(resid)
+    return fitted, (rolled - fitted[None]) * block_bias(rho, block) * leverage(len(x), batch.p, rho)
 
 
 def bends(batch: _Batch, centre: np.ndarray, fitted: np.ndarray, iterations: int) -> dict[str, float]:
