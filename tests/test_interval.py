@@ -255,7 +255,7 @@ def test_the_fitted_trajectorys_own_spread_at_the_clips_ends_is_what_its_resampl
     truth = np.std(fitted_each[:, [0, -1], 0], axis=0)
     said = []
     for seed in range(6):
-        fitted, moves = iv.trajectory_moves(OSC, {}, paths[seed], DT, {"w2": 4.0, "c": 0.1}, seed=seed)
+        fitted, moves, _ = iv.trajectory_moves(OSC, {}, paths[seed], DT, {"w2": 4.0, "c": 0.1}, seed=seed)
         assert fitted.shape == (T, 1) and moves.shape[1:] == (T, 1) and len(moves) >= 40
         said.append(np.std(moves[:, [0, -1], 0], axis=0, ddof=1))
     said = np.median(said, axis=0)

@@ -115,8 +115,9 @@ def test_a_drain_whose_zero_the_calibration_sets_is_judged_on_its_calibrated_pat
     assert [p["read_on"] for p in res.calibration["points"]] == ["the fitted trajectory"] * 2
     assert k.value == pytest.approx(0.013, rel=0.005)
     low, high = k.interval
-    # the points' share: how far the fitted trajectory moves there (+-4.4% in all), not how far the
-    # frames at them do (+-6.9%)
-    assert low <= 0.013 <= high and high - low < 0.11 * k.value
+    # the points' share: what the fitted trajectory's moves there add to the constant's own moves
+    # over the same resampled paths (+-3.3% in all); how far the frames at them scatter gave +-6.9%,
+    # and the trajectory's moves added apart from the constant's +-4.4%
+    assert low <= 0.013 <= high and high - low < 0.08 * k.value
     assert "restarts" not in res.verdicts["k"]["reason"]
     assert "one fit of the measured path as calibrated" in res.summary()

@@ -454,12 +454,13 @@ def _resampled(batch: _Batch, x: np.ndarray, values: Mapping[str, float], iterat
 
 def trajectory_moves(system, params: Mapping, x: np.ndarray, dt: float, values: Mapping[str, float], *,
                      iterations: int = ITERATIONS, seed: int = 0, integrator: str = "rk4",
-                     substeps: int = 1) -> tuple[np.ndarray, np.ndarray] | None:
+                     substeps: int = 1) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]] | None:
     """How far the one trajectory fitted to the path x (T, k) moves with the path's residuals: the
-    trajectory (T, k), and each refit's (bootstrap's draws, rolled out) difference from it (N, T,
-    k), widened as the constants' spread is (block_bias, leverage). What a reading taken on the
-    fitted trajectory is uncertain by (fitode.calibrate reads its points there). None where it
-    cannot be made."""
+    trajectory (T, k), each refit's (bootstrap's draws, rolled out) difference from it (N, T, k),
+    and each constant's difference in the same refits ({name: (N,)}), all widened as the
+    constants' spread is (block_bias, leverage). What a reading taken on the fitted trajectory is
+    uncertain by, and how that hangs together with the constants fitted to the same path
+    (fitode.calibrate reads its points there). None where it cannot be made."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     if not np.all(np.isfinite(x)):
         return None
@@ -473,11 +474,13 @@ def trajectory_moves(system, params: Mapping, x: np.ndarray, dt: float, values: 
             rolled = batch.roll(draws)
     except (ValueError, RuntimeError, FloatingPointError, np.linalg.LinAlgError, FitodeError):
         return None
-    rolled = rolled[np.all(np.isfinite(rolled), axis=(1, 2))]
-    if len(rolled) < 2:
+    ok = np.all(np.isfinite(rolled), axis=(1, 2))
+    if ok.sum() < 2:
         return None
     rho = correlation(resid)
-    return fitted, (rolled - fitted[None]) * block_bias(rho, block) * leverage(len(x), batch.p, rho)
+    widen = block_bias(rho, block) * leverage(len(x), batch.p, rho)
+    constants = {n: (draws[ok, i] - centre[0, i]) * widen for i, n in enumerate(batch.names)}
+    return fitted, (rolled[ok] - fitted[None]) * widen, constants
 
 
 def bends(batch: _Batch, centre: np.ndarray, fitted: np.ndarray, iterations: int) -> dict[str, float]:
