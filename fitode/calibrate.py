@@ -26,7 +26,7 @@ import itertools
 import math
 import re
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -413,8 +413,9 @@ def calibrate_result(result, system, params: Mapping[str, Any], points: Sequence
     fitted = _refit(system, params, x[first:last], result.dt, best, mapped_best, maps, options, seed)
     trajectory = result.meta.get("trajectory") if isinstance(result.meta.get("trajectory"), Mapping) else {}
     moves = _point_moves(system, params, points, time, x, (first, last), result.dt, fitted, maps, on_path,
-                         result.states, options, seed) if not trajectory.get("pieces") else {}
-    rel_a = scale_uncertainty(points, time, latent, result.states, maps, on_path, moves)
+                         result.states, options, seed) if not trajectory.get("pieces") else None
+    rel_a = scale_uncertainty(points, time, latent, result.states, maps, on_path,
+                              moves.readings if moves is not None else None)
     measured = _scale_powers(system, params, x[first:last], result.dt, fitted, maps, options, powers)
     reading = _reading_share(system, params, points, time, latent, result.states, maps, fitted, (first, last),
                              result.dt, options, [n for n, f in factors.items() if f is None], on_path, moves)
@@ -619,8 +620,7 @@ def _scale_powers(system, params, x: np.ndarray, dt: float, fitted, maps: Mappin
 def _reading_share(system, params, points: Sequence[CalibrationPoint], time: np.ndarray, latent: np.ndarray,
                    states: Sequence[str], maps: Mapping[str, AffineMap], fitted, frames: tuple[int, int],
                    dt: float, options: Mapping[str, Any], names: Sequence[str],
-                   on_path: np.ndarray | None = None,
-                   moves: Mapping[str, np.ndarray] | None = None) -> dict[str, float]:
+                   on_path: np.ndarray | None = None, moves: PointMoves | None = None) -> dict[str, float]:
     """The relative std that the latent's reading at the points gives each constant refitted after
     the map (no pure power: the drain's k, which the map's offset moves as well as its scale).
     Each point's reading is moved by its error, the map fitted again and the calibrated path
@@ -646,69 +646,73 @@ def _reading_share(system, params, points: Sequence[CalibrationPoint], time: np.
     z = point_readings(points, time, latent, state, states, on_path)
     values = np.array([p.value for p in mine])
     first, last = frames
-    var = dict.fromkeys(names, 0.0)
-    drawn = (moves or {}).get(state)
-    carried = {n: np.zeros(len(drawn)) for n in names} if drawn is not None else None
     from fitode.train.trajectory import fit_trajectory
+    steps, shifts = [], []  # each point's reading moved by its error, and each constant's change
     for i, p in enumerate(mine):
-        step = max(slow, local_std(time, column, p.time))
+        steps.append(max(slow, local_std(time, column, p.time)))
         moved = z.copy()
-        moved[i] += step
+        moved[i] += steps[-1]
         (a, b), *_ = np.linalg.lstsq(np.stack([moved, np.ones_like(moved)], axis=1), values, rcond=None)
         x = np.asarray(latent, dtype=float).copy()
         x[:, col] = a * column + b
         f = fit_trajectory(system, params, x[first:last], dt, fitted.values, **options)
         if f is None:
             return {}
-        for n in names:
-            var[n] += (f.values[n] - fitted.values[n]) ** 2
-            if carried is not None:
-                carried[n] += (f.values[n] - fitted.values[n]) / step * drawn[:, i]
-    if carried is not None:
+        shifts.append({n: f.values[n] - fitted.values[n] for n in names})
+    drawn = moves.readings.get(state) if moves is not None else None
+    if drawn is None:
+        var = {n: sum(d[n] ** 2 for d in shifts) for n in names}
+    else:
         # the same resampled paths move the constants (the interval's residual share) and the
         # readings: only what the readings add to the constants' own moves is this share's (a
         # steeper trajectory reads a wider map, which takes the refit constant back: the seed-10
         # drains' two parts, added as if apart, made +-1.3-2.3% for errors under 0.1%)
-        own = moves[CONSTANTS]
-        var = {n: max(float(np.var(c + own[n], ddof=1) - np.var(own[n], ddof=1)), 0.0) for n, c in carried.items()}
+        own = moves.constants
+        var = {}
+        for n in names:
+            carried = sum(d[n] / step * drawn[:, i] for i, (d, step) in enumerate(zip(shifts, steps)))
+            var[n] = max(float(np.var(carried + own[n], ddof=1) - np.var(own[n], ddof=1)), 0.0)
     return {n: math.sqrt(var[n]) / abs(fitted.values[n]) for n in names if fitted.values.get(n)}
 
 
-CONSTANTS = ""  # _point_moves' key for the constants' moves in the same refits (no state is named "")
+class PointMoves(NamedTuple):
+    """What one bootstrap of the calibrated path moves (_point_moves): {state: (N, points)} each of
+    the state's point readings on the fitted trajectory, in the latent's units, and {name: (N,)}
+    each constant, in the same refits."""
+    readings: dict[str, np.ndarray]
+    constants: dict[str, np.ndarray]
 
 
 def _point_moves(system, params, points: Sequence[CalibrationPoint], time: np.ndarray, x: np.ndarray,
                  frames: tuple[int, int], dt: float, fitted, maps: Mapping[str, AffineMap], on_path: np.ndarray | None,
-                 states: Sequence[str], options: Mapping[str, Any], seed: int) -> dict[str, np.ndarray]:
-    """{state: (N, points)} how far each of the state's point readings (in the latent's units)
-    moves when they are read on the trajectory fitted to the calibrated path x[first:last] (T, k)
-    and that path's residuals are resampled (fitode.train.interval.trajectory_moves), for each
-    state whose points are all read on the fitted trajectory; and under CONSTANTS, {name: (N,)}
-    how far each constant moves in the same refits. A reading on the trajectory averages
-    the reading's slow errors over the whole path, which the frames at a point do not (the
-    seed-10 drains: 0.04% off where the frames' share gave +-5.3%). {} where there is none to make."""
+                 states: Sequence[str], options: Mapping[str, Any], seed: int) -> PointMoves | None:
+    """How far the point readings move when they are read on the trajectory fitted to the
+    calibrated path x[first:last] (T, k) and that path's residuals are resampled
+    (fitode.train.interval.trajectory_moves), for each state whose points are all read on the
+    fitted trajectory, and how far the constants move in the same refits. A reading on the
+    trajectory averages the reading's slow errors over the whole path, which the frames at a point
+    do not (the seed-10 drains: 0.04% off where the frames' share gave +-5.3%). None where there is
+    none to make."""
     if on_path is None or fitted is None or fitted.windows is not None:
-        return {}
+        return None
     states = list(states)
     mine = [s for s in maps if all(on_trajectory(points, time, on_path, s, states))]
     if not mine:
-        return {}
+        return None
     from fitode.train.interval import trajectory_moves
     first, last = frames
     drawn = trajectory_moves(system, params, x[first:last], dt, fitted.values, seed=seed,
                              integrator=options["integrator"], substeps=options["substeps"])
     if drawn is None:
-        return {}
+        return None
     _, moved, constants = drawn
     span = np.asarray(time, dtype=float)[first:last]
-    out: dict = {}
+    readings = {}
     for s in mine:
         col, a = states.index(s), maps[s].a
         at = [p.time for p in points if p.state == s]
-        out[s] = np.array([[local_value(span, d[:, col], t) / a for t in at] for d in moved])
-    if out:
-        out[CONSTANTS] = constants
-    return out
+        readings[s] = np.array([[local_value(span, d[:, col], t) / a for t in at] for d in moved])
+    return PointMoves(readings, constants)
 
 
 def _relative_std(name: str, maps: Mapping[str, AffineMap], rel_a: Mapping[str, float],
