@@ -212,3 +212,29 @@ def test_constants_named_as_the_generated_codes_own_names_roll_out():
     traj = get_integrator("rk4")(lay).rollout(lambda y: compile_numpy(system)(y, 4.0, 0.5), np.array([[1.0, 0.0]]),
                                               20, 0.1)
     assert np.all(np.isfinite(traj)) and traj[0, 1, 0] < 1.0
+
+
+@pytest.mark.parametrize("equation, affine", [
+    ("x'' = -a", True), ("y'' = -w2*y - c*y'", True), ("I' = -gamma*(I - c)", True),
+    ("x'' = -a; y'' = -g", True), ("x''' = -a*x' - b*x + c", True), ("x'' = -abs(a)*x'", True),
+    ("x'' = -g/L*sin(x) - z*x'", False), ("x'' = -m*sign(x')", False), ("h' = -k*sqrt(h)", False),
+    ("x'' = -a*x*x'", False), ("x'' = -k*abs(x')*x'", False)])
+def test_an_affine_field_is_told_and_its_rollout_powered_up_is_the_stepped_one(equation, affine):
+    from fitode.codegen.source import compile_numpy
+
+    system = parse(equation)
+    layout = StateLayout.from_system(system)
+    assert layout.affine is affine
+    if not affine:
+        return
+    fn = compile_numpy(system)
+    rng = np.random.default_rng(3)
+    consts = [rng.uniform(0.5, 2.0, 4) for _ in layout.constants]
+    y0 = rng.normal(size=(4, layout.n_slots))
+    for name in INTEGRATORS:
+        integ = get_integrator(name)(layout)
+        for frames, substeps in ((1, 1), (2, 1), (5, 3), (300, 1), (1025, 2)):
+            stepped = integ.rollout(lambda y: fn(y, *consts), y0, frames, 0.01, substeps)
+            powered = integ.rollout_affine(lambda y: fn(y, *consts), y0, frames, 0.01, substeps)
+            assert powered.shape == stepped.shape
+            np.testing.assert_allclose(powered, stepped, rtol=1e-11, atol=1e-11 * np.abs(stepped).max())
