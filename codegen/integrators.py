@@ -3,8 +3,10 @@
 Same shape as torchdiffeq's fixed-grid solvers. A rollout advances `substeps` steps of
 h = dt/substeps per frame interval and keeps one state per frame. Every step works on the whole
 batch at once (the state is one tensor of shape (batch, n_slots)); the only Python loop is over
-time steps, which no explicit scheme can avoid. A rollout of NumPy arrays with a NumPy field
-(codegen.source.compile_numpy) is the same steps without gradients, at a fraction of the cost.
+time steps. A rollout of NumPy arrays with a NumPy field (codegen.source.compile_numpy) is the
+same steps without gradients, at a fraction of the cost; where the field is affine in the state
+(StateLayout.affine), rollout_affine takes no step per frame at all: one frame's steps are an
+affine map, and the frames its powers.
 """
 from __future__ import annotations
 
