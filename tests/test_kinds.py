@@ -308,3 +308,27 @@ def test_a_fast_swing_sampled_coarsely_keeps_its_turns_and_loses_its_strays():
     strayed[40] = [3.0, 3.0]  # something else, off the arc
     kept, mended = _mended_off_the_arc(strayed, len(xy))
     assert mended == 1 and np.hypot(*(kept[40] - xy[40])) < 5
+
+
+@pytest.mark.slow
+def test_a_fit_of_the_wrong_object_names_the_others_and_the_flag_that_reads_the_right_one(tmp_path):
+    """The reader takes the strongest change (the larger disc, moving up and down); the equation is
+    about the smaller one, moving across: the fit is not trustworthy, and its warning names the
+    other object's flag, which gives the smaller disc's k."""
+    import cv2
+
+    left, right = _two_oscillators(150)
+    frames = _blob_clip([left, right], [4.0, 6.0])
+    path = tmp_path / "two.mp4"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (frames.shape[2], frames.shape[1]), True)
+    for f in frames:
+        writer.write(cv2.cvtColor(f, cv2.COLOR_GRAY2BGR))
+    writer.release()
+    result = fitode.fit(str(path), eq="x'' = -k*x", stride=1, restarts=2)
+    assert result.verdicts["k"]["verdict"] == "not trustworthy"
+    named = [w for w in result.warnings if w.startswith("the tracker sees 2 moving objects")]
+    assert len(named) == 1 and "the reader took object 2" in named[0] and named[0].endswith("--observe position@1")
+    again = fitode.fit(str(path), eq="x'' = -k*x", stride=1, restarts=2, observe="position@1")
+    assert again.parameters["k"].value == pytest.approx(25.0, rel=0.01)
+    assert again.verdicts["k"]["verdict"] == "trusted"
+    assert not any(w.startswith("the tracker sees") for w in again.warnings)
