@@ -188,8 +188,8 @@ def _other_objects(result: FitResult, fit_plan: FitPlan) -> str | None:
     """Where a constant is not trustworthy and the reader's track came from one of several moving
     objects the observation did not name, the line that names the others and the flag that reads
     one (train.observe.track.Track.others): the tracker takes the strongest change, not always the
-    object the equation is about (a real drop's whole clip: the hand and the arm that let the ball
-    go). None otherwise."""
+    object the equation is about (the real drop's whole clip: the hand that lets the ball go, the
+    arm). None otherwise."""
     if result.meta.get("interrupted") or not any(
             v.get("verdict") == "not trustworthy" for v in result.verdicts.values()):
         return None
