@@ -144,9 +144,15 @@ def fit_staged(reqs, staged: Staged, *, rate: float = 0.0, callback=None, progre
         chosen = comparison.candidates[comparison.chosen]
         result, req, plan = chosen.result, chosen.request, chosen.plan
     else:
+        from fitode.objects import another_object
+
         req, plan = reqs[0], staged.plan
         result = api.execute(req, plan, staged.frames, time_offset=staged.t0, callback=callback, progress=progress,
                              rate_std=rate, measurement=staged.measurement)
+        other = another_object(req, plan, result, staged, lambda r, p, f: api.execute(
+            r, p, f, time_offset=staged.t0, callback=callback, progress=progress, rate_std=rate), log=log)
+        if other is not None:
+            result, req, plan = other
     if staged.clip is not None:  # what was measured, in the video's pixels
         source_measurement(result, staged.clip)
     return result, req, plan, comparison
@@ -205,7 +211,7 @@ def run_video(video: str | Path, out_dir: str | Path | None = None, *, read: Rea
                       plots_done=plots_done)
         result, req, plan, comparison = fit_staged(reqs, staged, rate=rate_std(read.fps), callback=recorder,
                                                    progress=progress, log=say)
-        if comparison is not None and comparison.chosen:  # the report describes the candidate whose numbers it gives
+        if plan is not staged.plan:  # the report describes the candidate, or the object, whose numbers it gives
             ode, spec = req.system, req.spec
             analysis = rep.analysis_dict(rep.identifiability(ode))
             report = {**rep.base_report(video, clip, ode, spec, analysis, plan, req.train_fraction, folder,

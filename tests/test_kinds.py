@@ -310,11 +310,24 @@ def test_a_fast_swing_sampled_coarsely_keeps_its_turns_and_loses_its_strays():
     assert mended == 1 and np.hypot(*(kept[40] - xy[40])) < 5
 
 
+def test_the_other_objects_are_named_with_the_flag_that_reads_each():
+    left, right = _two_oscillators(90)
+    track = _recorded(_blob_clip([left, right], [4.0, 6.0]))
+    assert track.taken() == 2  # the stronger change, the larger disc on the right
+    line = track.others("position", ("x",))
+    assert line.startswith("the tracker sees 2 moving objects") and "the reader took object 2" in line
+    assert line.endswith("name it: --observe position@1")
+    assert track.others("position", ("x", "y")).endswith('--observe "x=position@1;y=position@1"')
+    one = Track(track.xy, track.area, 1, "", track.objects[:1])
+    assert one.others("position", ("x",)) is None
+
+
 @pytest.mark.slow
-def test_a_fit_of_the_wrong_object_names_the_others_and_the_flag_that_reads_the_right_one(tmp_path):
+def test_a_path_that_does_not_follow_the_equation_gives_way_to_another_object_the_user_did_not_name(tmp_path):
     """The reader takes the strongest change (the larger disc, moving up and down); the equation is
-    about the smaller one, moving across: the fit is not trustworthy, and its warning names the
-    other object's flag, which gives the smaller disc's k."""
+    about the smaller one, moving across: on the reader's path the constant is not trustworthy, so
+    the other object is fitted and taken, with a line that says so; an object the user names is
+    kept, however it fits, and its warning names no other."""
     import cv2
 
     left, right = _two_oscillators(150)
@@ -325,10 +338,10 @@ def test_a_fit_of_the_wrong_object_names_the_others_and_the_flag_that_reads_the_
         writer.write(cv2.cvtColor(f, cv2.COLOR_GRAY2BGR))
     writer.release()
     result = fitode.fit(str(path), eq="x'' = -k*x", stride=1, restarts=2)
-    assert result.verdicts["k"]["verdict"] == "not trustworthy"
-    named = [w for w in result.warnings if w.startswith("the tracker sees 2 moving objects")]
-    assert len(named) == 1 and "the reader took object 2" in named[0] and named[0].endswith("--observe position@1")
-    again = fitode.fit(str(path), eq="x'' = -k*x", stride=1, restarts=2, observe="position@1")
-    assert again.parameters["k"].value == pytest.approx(25.0, rel=0.01)
-    assert again.verdicts["k"]["verdict"] == "trusted"
-    assert not any(w.startswith("the tracker sees") for w in again.warnings)
+    assert result.parameters["k"].value == pytest.approx(25.0, rel=0.01)
+    assert result.verdicts["k"]["verdict"] == "trusted"
+    assert result.warnings[0].startswith("read from object 1 of 2")
+    assert "--observe position@1 says so, --observe position@2 reads the other" in result.warnings[0]
+    kept = fitode.fit(str(path), eq="x'' = -k*x", stride=1, restarts=2, observe="position@2")
+    assert kept.verdicts["k"]["verdict"] == "not trustworthy"
+    assert not any(w.startswith(("read from object", "the tracker sees")) for w in kept.warnings)

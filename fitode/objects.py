@@ -1,0 +1,86 @@
+"""Another moving object where the reader's path does not follow the equation.
+
+The reader takes the strongest change, or the object tracker's best-kept path (fitode.video.follow),
+which is not always the object the equation is about: on the shared real drop read whole it follows
+another moving thing than the ball. Where the user named no object and a constant came out NOT
+TRUSTWORTHY, each other moving object the tracker sees (Track.objects) is fitted with the same
+equation, and the first whose constants are all trusted, or else one with none not trustworthy, is
+taken instead, with a line that says so and names the flags that choose either way. What the user
+named (--observe position@K, or any --observe) is never replaced.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any, Callable
+
+from fitode.errors import FitodeError
+
+MODELS = ("position", "angle")  # the observations that read a place of the reader's track
+
+
+def _counts(result) -> tuple[int, int]:
+    verdicts = [v.get("verdict") for v in result.verdicts.values()]
+    return verdicts.count("not trustworthy"), verdicts.count("trusted")
+
+
+def _spec(name: str, k: int, states: tuple[str, ...]):
+    return f"{name}@{k}" if len(states) == 1 else {s: f"{name}@{k}" for s in states}
+
+
+def _flag(spec) -> str:
+    if isinstance(spec, str):
+        return f"--observe {spec}"
+    return '--observe "' + ";".join(f"{s}={m}" for s, m in spec.items()) + '"'
+
+
+def another_object(req, plan, result, staged, execute: Callable[..., Any],
+                   log: Callable[[str], None] | None = None):
+    """(result, request, plan) of another moving object where the reader's path gives a constant
+    that is not trustworthy and another object's path gives none (module docstring); None where
+    the fit stays as it is. execute(request, plan): the fit of a request's plan on the staged frames."""
+    from fitode import api
+
+    track = staged.track
+    model = plan.observation
+    if (req.observe is not None or track is None or len(track.objects) < 2 or result.meta.get("interrupted")
+            or getattr(model, "name", None) not in MODELS or getattr(model, "object", None)
+            or not _counts(result)[0]):
+        return None
+    say = log or (lambda _line: None)
+    states = tuple(req.system.states)
+    taken = track.taken()
+    best = None
+    for k in range(1, len(track.objects) + 1):
+        if k == taken:
+            continue
+        spec = _spec(model.name, k, states)
+        other = replace(req, observe=spec, observe_source="another moving object: the reader's path does not "
+                                                          "follow the equation")
+        say(f"trying object {k} of {len(track.objects)}: the reader's path gives a constant that is not trustworthy")
+        try:
+            other_plan = api.plan(other, staged.frames, staged.dt, track=track, geometry=staged.geometry)
+            fitted = execute(other, other_plan, staged.frames)
+        except FitodeError:
+            continue
+        bad, trusted = _counts(fitted)
+        if bad or fitted.meta.get("interrupted") or not fitted.meta.get("direct"):
+            continue
+        if best is None or trusted > best[0]:
+            best = (trusted, k, spec, fitted, other, other_plan)
+        if trusted == len(fitted.verdicts):
+            break
+    if best is None:
+        return None
+    _, k, spec, fitted, other, other_plan = best
+    was = f"object {taken}" if taken else "a path none of theirs"
+    back = _flag(_spec(model.name, taken, states)) if taken else "no flag (as the reader took it)"
+    fitted.warnings.insert(0, (
+        f"read from object {k} of {len(track.objects)} (about x = {float(_median(track.objects[k - 1])):.0f} px), "
+        f"not the reader's path ({was}), on which a constant was not trustworthy: the equation follows this one; "
+        f"{_flag(spec)} says so, {back} reads the other"))
+    return fitted, other, other_plan
+
+
+def _median(path) -> float:
+    import numpy as np
+    return float(np.nanmedian(path[:, 0]))
