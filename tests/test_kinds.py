@@ -249,6 +249,17 @@ def _two_oscillators(n=150):
     return left, right
 
 
+def _written(frames: np.ndarray, path):
+    """Gray frames (T, h, w) uint8 written as a 30 fps mp4 at path."""
+    import cv2
+
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (frames.shape[2], frames.shape[1]), True)
+    for f in frames:
+        writer.write(cv2.cvtColor(f, cv2.COLOR_GRAY2BGR))
+    writer.release()
+    return path
+
+
 def _recorded(frames: np.ndarray) -> Track:
     from fitode.video.track import TrackRecorder
 
@@ -282,15 +293,9 @@ def test_each_state_reads_the_object_it_names():
 @pytest.mark.slow
 @pytest.mark.long
 def test_two_oscillators_fitted_as_a_system_each_from_its_own_object(tmp_path):
-    import cv2
-
     left, right = _two_oscillators(240)
     frames = _blob_clip([left, right], [4.0, 6.0])
-    path = tmp_path / "two.mp4"
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (frames.shape[2], frames.shape[1]), True)
-    for f in frames:
-        writer.write(cv2.cvtColor(f, cv2.COLOR_GRAY2BGR))
-    writer.release()
+    path = _written(frames, tmp_path / "two.mp4")
     result = fitode.fit(str(path), eq="a'' = -k1*a; b'' = -k2*b", observe="a=position@1;b=position@2", stride=1)
     assert result.parameters["k1"].value == pytest.approx(25.0, rel=0.01)
     assert result.parameters["k2"].value == pytest.approx(9.0, rel=0.01)
@@ -328,15 +333,9 @@ def test_a_path_that_does_not_follow_the_equation_gives_way_to_another_object_th
     about the smaller one, moving across: on the reader's path the constant is not trustworthy, so
     the other object is fitted and taken, with a line that says so; an object the user names is
     kept, however it fits, and its warning names no other."""
-    import cv2
-
     left, right = _two_oscillators(150)
     frames = _blob_clip([left, right], [4.0, 6.0])
-    path = tmp_path / "two.mp4"
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (frames.shape[2], frames.shape[1]), True)
-    for f in frames:
-        writer.write(cv2.cvtColor(f, cv2.COLOR_GRAY2BGR))
-    writer.release()
+    path = _written(frames, tmp_path / "two.mp4")
     result = fitode.fit(str(path), eq="x'' = -k*x", stride=1, restarts=2)
     assert result.parameters["k"].value == pytest.approx(25.0, rel=0.01)
     assert result.verdicts["k"]["verdict"] == "trusted"
