@@ -4,7 +4,8 @@ The reader takes the strongest change, or the object tracker's best-kept path (f
 which is not always the object the equation is about: on the shared real drop read whole it follows
 another moving thing than the ball. Where the user named no object and a constant came out NOT
 TRUSTWORTHY, each other moving object the tracker sees (Track.objects) is fitted with the same
-equation, and the first whose constants are all trusted, or else one with none not trustworthy, is
+equation, and of those that move at least as far over their fitted frames as the reader's path did
+over its own, the first whose constants are all trusted, or else one with none not trustworthy, is
 taken instead, with a line that says so and names the flags that choose either way. What the user
 named (--observe position@K, or any --observe) is never replaced.
 """
@@ -21,6 +22,17 @@ MODELS = ("position", "angle")  # the observations that read a place of the read
 def _counts(result) -> tuple[int, int]:
     verdicts = [v.get("verdict") for v in result.verdicts.values()]
     return verdicts.count("not trustworthy"), verdicts.count("trusted")
+
+
+def _travel(result) -> float:
+    """How far the fitted path moves over the frames fitted, in the state's units (the largest
+    range of any state): a short, small stretch of anything fits some trajectory of the equation."""
+    import numpy as np
+
+    measured = np.asarray((result.meta.get("trajectory") or {}).get("measured") or [], dtype=float)
+    if measured.size == 0:
+        return 0.0
+    return float(np.nanmax(np.ptp(measured.reshape(len(measured), -1), axis=0)))
 
 
 def _spec(name: str, k: int, states: tuple[str, ...]):
@@ -49,6 +61,7 @@ def another_object(req, plan, result, staged, execute: Callable[..., Any],
     say = log or (lambda _line: None)
     states = tuple(req.system.states)
     taken = track.taken()
+    reach = _travel(result)
     best = None
     for k in range(1, len(track.objects) + 1):
         if k == taken:
@@ -63,7 +76,9 @@ def another_object(req, plan, result, staged, execute: Callable[..., Any],
         except FitodeError:
             continue
         bad, trusted = _counts(fitted)
-        if bad or fitted.meta.get("interrupted") or not fitted.meta.get("direct"):
+        # and it moves at least as far along the equation as the reader's path where that was fitted:
+        # the object a clip is about is the one whose motion the equation follows farthest
+        if bad or fitted.meta.get("interrupted") or not fitted.meta.get("direct") or _travel(fitted) < reach:
             continue
         if best is None or trusted > best[0]:
             best = (trusted, k, spec, fitted, other, other_plan)
