@@ -201,7 +201,7 @@ def _other_objects(result: FitResult, fit_plan: FitPlan) -> str | None:
     name, track = names.pop(), parts[0].track
     if name not in ("position", "angle") or track is None:
         return None
-    return track.others(name, tuple(fit_plan.system.states))
+    return track.others(name)
 
 
 def _intervals(result: FitResult, req: FitRequest, rate_std: float) -> None:

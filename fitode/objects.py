@@ -14,6 +14,8 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any, Callable
 
+import numpy as np
+
 from fitode.errors import FitodeError
 
 MODELS = ("position", "angle")  # the observations that read a place of the reader's track
@@ -27,22 +29,10 @@ def _counts(result) -> tuple[int, int]:
 def _travel(result) -> float:
     """How far the fitted path moves over the frames fitted, in the state's units (the largest
     range of any state): a short, small stretch of anything fits some trajectory of the equation."""
-    import numpy as np
-
     measured = np.asarray((result.meta.get("trajectory") or {}).get("measured") or [], dtype=float)
     if measured.size == 0:
         return 0.0
     return float(np.nanmax(np.ptp(measured.reshape(len(measured), -1), axis=0)))
-
-
-def _spec(name: str, k: int, states: tuple[str, ...]):
-    return f"{name}@{k}" if len(states) == 1 else {s: f"{name}@{k}" for s in states}
-
-
-def _flag(spec) -> str:
-    if isinstance(spec, str):
-        return f"--observe {spec}"
-    return '--observe "' + ";".join(f"{s}={m}" for s, m in spec.items()) + '"'
 
 
 def another_object(req, plan, result, staged, execute: Callable[..., Any],
@@ -59,14 +49,13 @@ def another_object(req, plan, result, staged, execute: Callable[..., Any],
             or not _counts(result)[0]):
         return None
     say = log or (lambda _line: None)
-    states = tuple(req.system.states)
     taken = track.taken()
     reach = _travel(result)
     best = None
     for k in range(1, len(track.objects) + 1):
         if k == taken:
             continue
-        spec = _spec(model.name, k, states)
+        spec = f"{model.name}@{k}"
         other = replace(req, observe=spec, observe_source="another moving object: the reader's path does not "
                                                           "follow the equation")
         say(f"trying object {k} of {len(track.objects)}: the reader's path gives a constant that is not trustworthy")
@@ -88,14 +77,10 @@ def another_object(req, plan, result, staged, execute: Callable[..., Any],
         return None
     _, k, spec, fitted, other, other_plan = best
     was = f"object {taken}" if taken else "a path none of theirs"
-    back = _flag(_spec(model.name, taken, states)) if taken else "no flag (as the reader took it)"
+    back = f"--observe {model.name}@{taken}" if taken else "no flag (as the reader took it)"
     fitted.warnings.insert(0, (
-        f"read from object {k} of {len(track.objects)} (about x = {float(_median(track.objects[k - 1])):.0f} px), "
+        f"read from object {k} of {len(track.objects)} (about x = {float(np.nanmedian(track.objects[k - 1][:, 0])):.0f} px), "
         f"not the reader's path ({was}), on which a constant was not trustworthy: the equation follows this one; "
-        f"{_flag(spec)} says so, {back} reads the other"))
+        f"--observe {spec} says so, {back} reads the other"))
     return fitted, other, other_plan
 
-
-def _median(path) -> float:
-    import numpy as np
-    return float(np.nanmedian(path[:, 0]))

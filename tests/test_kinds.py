@@ -319,12 +319,11 @@ def test_the_other_objects_are_named_with_the_flag_that_reads_each():
     left, right = _two_oscillators(90)
     track = _recorded(_blob_clip([left, right], [4.0, 6.0]))
     assert track.taken() == 2  # the stronger change, the larger disc on the right
-    line = track.others("position", ("x",))
+    line = track.others("position")
     assert line.startswith("the tracker sees 2 moving objects") and "the reader took object 2" in line
     assert line.endswith("name it: --observe position@1")
-    assert track.others("position", ("x", "y")).endswith('--observe "x=position@1;y=position@1"')
     one = Track(track.xy, track.area, 1, "", track.objects[:1])
-    assert one.others("position", ("x",)) is None
+    assert one.others("position") is None
 
 
 @pytest.mark.slow

@@ -90,7 +90,7 @@ class Track:
                     best, near = k, d
         return best
 
-    def others(self, model: str, states: tuple[str, ...]) -> str | None:
+    def others(self, model: str) -> str | None:
         """One line naming the other moving objects and the flag that reads one of them, for a fit
         whose numbers are not trusted: the change detector's strongest path is not always the
         object the equation is about (a hand that lets a ball go, an arm beside it, a person
@@ -100,17 +100,11 @@ class Track:
         k = self.taken()
         where = ", ".join(f"{i} about ({float(np.nanmedian(p[:, 0])):.0f}, {float(np.nanmedian(p[:, 1])):.0f})"
                           for i, p in enumerate(self.objects, 1))
-        flags = [f"--observe {self._named(model, i, states)}" for i in range(1, len(self.objects) + 1) if i != k]
+        flags = [f"--observe {model}@{i}" for i in range(1, len(self.objects) + 1) if i != k]
         took = (f"the reader took object {k}; where the equation is about another" if k else
                 "the reader's path is none of theirs; where the equation is about one of them")
         return (f"the tracker sees {len(self.objects)} moving objects (from the left, their median place in source "
                 f"pixels (x, y down): {where}) and {took}, name it: {' or '.join(flags)}")
-
-    @staticmethod
-    def _named(model: str, k: int, states: tuple[str, ...]) -> str:
-        if len(states) == 1:
-            return f"{model}@{k}"
-        return '"' + ";".join(f"{s}={model}@{k}" for s in states) + '"'
 
     def object(self, k: int) -> "Track":
         """The track of the k-th moving object from the left (1-based); ConfigError where fewer
