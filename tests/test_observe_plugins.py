@@ -183,3 +183,14 @@ def test_an_equation_file_and_the_command_line_name_an_observation_per_state(tmp
     from fitode import cli
     assert cli.main(["clip.npy", "--eq", "x'' = -a*x", "--observe", "x=nowhere"]) == 2
     assert "observe x='nowhere'" in capsys.readouterr().err
+
+
+def test_the_one_states_model_named_for_it_is_that_model():
+    """`y=position@1` for an equation of y alone reads as `position@1` does, the perspective
+    re-reading included (the per-state model bends no path: its states are several)."""
+    from fitode.train.observe import PositionObservation, resolve_observation
+
+    model = resolve_observation("y=position", parse("y'' = -g"))
+    assert isinstance(model, PositionObservation) and model.applies("perspective")
+    both = resolve_observation("x=position;y=position", parse("x'' = 0; y'' = -g"))
+    assert not isinstance(both, PositionObservation) and not both.applies("perspective")

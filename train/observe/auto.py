@@ -83,6 +83,8 @@ def _resolved(spec, system, frames, light, encoder, source, track) -> Observatio
         spec.reason = spec.reason or f"{spec.name} (as given)"
         return spec
     name = parse_observe(AUTO if spec is None else spec)
+    if isinstance(name, dict) and len(name) == 1 and len(system.states) == 1:
+        name = next(iter(name.values()))  # the one state's model named for it is that model, checks and all
     if isinstance(name, dict):
         from .per_state import PerStateObservation
         model = PerStateObservation({state: named_model(n, light) for state, n in name.items()}, system.states)
