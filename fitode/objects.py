@@ -64,6 +64,12 @@ def another_object(req, plan, result, staged, execute: Callable[..., Any],
             fitted = execute(other, other_plan, staged.frames)
         except FitodeError:
             continue
+        except KeyboardInterrupt:
+            # the reader's path was fitted and judged whole: its result is kept, marked interrupted
+            from fitode.interrupted import Stopped
+            result.meta["interrupted"] = True
+            result.meta["stopped"] = {"stage": "assessment", "undone": []}
+            raise Stopped(result, "assessment") from None
         bad, trusted = _counts(fitted)
         # and it moves at least as far along the equation as the reader's path where that was fitted:
         # the object a clip is about is the one whose motion the equation follows farthest
