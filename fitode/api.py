@@ -178,30 +178,11 @@ def _execute(req: FitRequest, fit_plan: FitPlan, frames: torch.Tensor, *, time_o
         assess(result, analysis, calibrated=calibrated, extra=extra).apply(result)
     # the parser's and the measurement's advice on what the user said stays with the numbers it concerns
     result.warnings[:0] = list(req.system.hints) + list(result.meta.get("hints", ()))
-    other = _other_objects(result, fit_plan)
+    from fitode.objects import naming_line
+    other = naming_line(result, fit_plan)  # the tracker's strongest change is not always the equation's object
     if other:
         result.warnings.append(other)
     return result
-
-
-def _other_objects(result: FitResult, fit_plan: FitPlan) -> str | None:
-    """Where a constant is not trustworthy and the reader's track came from one of several moving
-    objects the observation did not name, the line that names the others and the flag that reads
-    one (train.observe.track.Track.others): the tracker takes the strongest change, not always the
-    object the equation is about (the real drop's whole clip: the hand that lets the ball go, the
-    arm). None otherwise."""
-    if result.meta.get("interrupted") or not any(
-            v.get("verdict") == "not trustworthy" for v in result.verdicts.values()):
-        return None
-    model = fit_plan.observation
-    parts = list(getattr(model, "parts", {}).values()) or [model]
-    names = {p.name for p in parts}
-    if len(names) != 1 or any(getattr(p, "object", None) for p in parts):
-        return None  # several models, or an object already named
-    name, track = names.pop(), parts[0].track
-    if name not in ("position", "angle") or track is None:
-        return None
-    return track.others(name)
 
 
 def _intervals(result: FitResult, req: FitRequest, rate_std: float) -> None:

@@ -35,6 +35,27 @@ def _travel(result) -> float:
     return float(np.nanmax(np.ptp(measured.reshape(len(measured), -1), axis=0)))
 
 
+def _unnamed(model) -> tuple[str, Any] | None:
+    """(model name, the reader's track) where the observation reads a place of the reader's track
+    (one of MODELS, for every state) without naming an object; None otherwise."""
+    parts = list(getattr(model, "parts", {}).values()) or [model]
+    names = {p.name for p in parts}
+    if len(names) != 1 or any(getattr(p, "object", None) for p in parts):
+        return None
+    name, track = names.pop(), getattr(parts[0], "track", None)
+    return (name, track) if name in MODELS and track is not None else None
+
+
+def naming_line(result, plan) -> str | None:
+    """Where a constant is not trustworthy and the reader's path came from one of several moving
+    objects the observation did not name, the line that names them and the flag that reads each
+    (Track.others); None otherwise."""
+    read = _unnamed(plan.observation)
+    if read is None or result.meta.get("interrupted") or not _counts(result)[0]:
+        return None
+    return read[1].others(read[0])
+
+
 def another_object(req, plan, result, staged, execute: Callable[..., Any],
                    log: Callable[[str], None] | None = None):
     """(result, request, plan) of another moving object where the reader's path gives a constant
@@ -42,12 +63,11 @@ def another_object(req, plan, result, staged, execute: Callable[..., Any],
     the fit stays as it is. execute(request, plan): the fit of a request's plan on the staged frames."""
     from fitode import api
 
-    track = staged.track
-    model = plan.observation
-    if (req.observe is not None or track is None or len(track.objects) < 2 or result.meta.get("interrupted")
-            or getattr(model, "name", None) not in MODELS or getattr(model, "object", None)
-            or not _counts(result)[0]):
+    track, read = staged.track, _unnamed(plan.observation)
+    if (req.observe is not None or read is None or track is None or len(track.objects) < 2
+            or result.meta.get("interrupted") or not _counts(result)[0]):
         return None
+    name = read[0]
     say = log or (lambda _line: None)
     taken = track.taken()
     reach = _travel(result)
@@ -55,7 +75,7 @@ def another_object(req, plan, result, staged, execute: Callable[..., Any],
     for k in range(1, len(track.objects) + 1):
         if k == taken:
             continue
-        spec = f"{model.name}@{k}"
+        spec = f"{name}@{k}"
         other = replace(req, observe=spec, observe_source="another moving object: the reader's path does not "
                                                           "follow the equation")
         say(f"trying object {k} of {len(track.objects)}: the reader's path gives a constant that is not trustworthy")
@@ -83,7 +103,7 @@ def another_object(req, plan, result, staged, execute: Callable[..., Any],
         return None
     _, k, spec, fitted, other, other_plan = best
     was = f"object {taken}" if taken else "a path none of theirs"
-    back = f"--observe {model.name}@{taken}" if taken else "no flag (as the reader took it)"
+    back = f"--observe {name}@{taken}" if taken else "no flag (as the reader took it)"
     fitted.warnings.insert(0, (
         f"read from object {k} of {len(track.objects)} (about x = {float(np.nanmedian(track.objects[k - 1][:, 0])):.0f} px), "
         f"not the reader's path ({was}), on which a constant was not trustworthy: the equation follows this one; "
