@@ -103,10 +103,10 @@ def another_object(req, plan, result, staged, execute: Callable[..., Any],
         return None
     _, k, spec, fitted, other, other_plan = best
     was = f"object {taken}" if taken else "a path none of theirs"
-    back = f"--observe {name}@{taken}" if taken else "no flag (as the reader took it)"
+    back = f"--observe {name}@{taken}" if taken else f"--observe {name}"  # a model named: nothing is swapped
     fitted.warnings.insert(0, (
         f"read from object {k} of {len(track.objects)} (about x = {float(np.nanmedian(track.objects[k - 1][:, 0])):.0f} px), "
         f"not the reader's path ({was}), on which a constant was not trustworthy: the equation follows this one; "
-        f"--observe {spec} says so, {back} reads the other"))
+        f"--observe {spec} says so, {back} reads the reader's"))
     return fitted, other, other_plan
 

@@ -339,7 +339,7 @@ def test_a_path_that_does_not_follow_the_equation_gives_way_to_another_object_th
     assert result.parameters["k"].value == pytest.approx(25.0, rel=0.01)
     assert result.verdicts["k"]["verdict"] == "trusted"
     assert result.warnings[0].startswith("read from object 1 of 2")
-    assert "--observe position@1 says so, --observe position@2 reads the other" in result.warnings[0]
+    assert "--observe position@1 says so, --observe position@2 reads the reader's" in result.warnings[0]
     kept = fitode.fit(str(path), eq="x'' = -k*x", stride=1, restarts=2, observe="position@2")
     assert kept.verdicts["k"]["verdict"] == "not trustworthy"
     assert not any(w.startswith(("read from object", "the tracker sees")) for w in kept.warnings)
