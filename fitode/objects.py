@@ -56,14 +56,13 @@ def naming_line(result, plan) -> str | None:
     return read[1].others(read[0])
 
 
-def another_object(req, plan, result, staged, execute: Callable[..., Any],
+def another_object(req, plan, result, track, fit: Callable[[Any], tuple[Any, Any]],
                    log: Callable[[str], None] | None = None):
     """(result, request, plan) of another moving object where the reader's path gives a constant
     that is not trustworthy and another object's path gives none (module docstring); None where
-    the fit stays as it is. execute(request, plan): the fit of a request's plan on the staged frames."""
-    from fitode import api
-
-    track, read = staged.track, _unnamed(plan.observation)
+    the fit stays as it is. track: the reader's (Track); fit(request): (its plan, its result) on
+    the same frames, as the first was made."""
+    read = _unnamed(plan.observation)
     if (req.observe is not None or read is None or track is None or len(track.objects) < 2
             or result.meta.get("interrupted") or not _counts(result)[0]):
         return None
@@ -80,8 +79,7 @@ def another_object(req, plan, result, staged, execute: Callable[..., Any],
                                                           "follow the equation")
         say(f"trying object {k} of {len(track.objects)}: the reader's path gives a constant that is not trustworthy")
         try:
-            other_plan = api.plan(other, staged.frames, staged.dt, track=track, geometry=staged.geometry)
-            fitted = execute(other, other_plan, staged.frames)
+            other_plan, fitted = fit(other)
         except FitodeError:
             continue
         except KeyboardInterrupt:

@@ -149,8 +149,13 @@ def fit_staged(reqs, staged: Staged, *, rate: float = 0.0, callback=None, progre
         req, plan = reqs[0], staged.plan
         result = api.execute(req, plan, staged.frames, time_offset=staged.t0, callback=callback, progress=progress,
                              rate_std=rate, measurement=staged.measurement)
-        other = another_object(req, plan, result, staged, lambda r, p, f: api.execute(
-            r, p, f, time_offset=staged.t0, callback=callback, progress=progress, rate_std=rate), log=log)
+
+        def fit(other):  # another object's request, fitted as the first was
+            other_plan = api.plan(other, staged.frames, staged.dt, track=staged.track, geometry=staged.geometry)
+            return other_plan, api.execute(other, other_plan, staged.frames, time_offset=staged.t0,
+                                           callback=callback, progress=progress, rate_std=rate)
+
+        other = another_object(req, plan, result, staged.track, fit, log=log)
         if other is not None:
             result, req, plan = other
     if staged.clip is not None:  # what was measured, in the video's pixels

@@ -345,7 +345,7 @@ def test_a_path_that_does_not_follow_the_equation_gives_way_to_another_object_th
     assert not any(w.startswith(("read from object", "the tracker sees")) for w in kept.warnings)
 
 
-def test_an_interruption_while_another_object_is_fitted_keeps_the_readers_result(monkeypatch):
+def test_an_interruption_while_another_object_is_fitted_keeps_the_readers_result():
     from types import SimpleNamespace
 
     from fitode import api
@@ -357,18 +357,17 @@ def test_an_interruption_while_another_object_is_fitted_keeps_the_readers_result
     system = parse("x'' = -k*x")
     model = resolve_observation("position", system, track=track)
     asked = []
-    monkeypatch.setattr(api, "plan", lambda req, *a, **k: asked.append(req.observe) or SimpleNamespace())
     req = api.request(eq="x'' = -k*x")
     result = SimpleNamespace(meta={"trajectory": {"measured": [[0.0], [1.0]]}},
                              verdicts={"k": {"verdict": "not trustworthy"}})
-    staged = SimpleNamespace(track=track, frames=torch.zeros(len(left), 1, 8, 8), dt=1 / 30, geometry=None)
 
-    def interrupted(*_):
+    def interrupted(other):
+        asked.append(other.observe)
         raise KeyboardInterrupt
 
     with pytest.raises(Stopped) as stopped:
-        another_object(req, SimpleNamespace(observation=model), result, staged, interrupted)
+        another_object(req, SimpleNamespace(observation=model), result, track, interrupted)
     assert stopped.value.result is result and result.meta["interrupted"] and asked == ["position@1"]
     result.verdicts["k"]["verdict"] = "ambiguous"  # nothing not trustworthy: nothing else is fitted
-    assert another_object(req, SimpleNamespace(observation=model), result, staged, interrupted) is None
+    assert another_object(req, SimpleNamespace(observation=model), result, track, interrupted) is None
     assert asked == ["position@1"]
