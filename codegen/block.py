@@ -61,7 +61,6 @@ class PhysicsBlock(nn.Module):
         self.system = system
         self.field = compile_system(system)
         self._numpy_field = None
-        self._affine: bool | None = None  # the layout's, asked on the first NumPy rollout
         self.layout: StateLayout = self.field.layout
         self.integrator_name = get_integrator(integrator).name
         self.integrator = get_integrator(integrator)(self.layout)
@@ -345,9 +344,7 @@ class PhysicsBlock(nn.Module):
         if self._numpy_field is None:  # compiled on first use: the training never asks for it
             self._numpy_field = compile_numpy(self.system)
         fn = self._numpy_field
-        if self._affine is None:
-            self._affine = self.layout.affine
-        roll = self.integrator.rollout_affine if self._affine else self.integrator.rollout
+        roll = self.integrator.rollout_affine if self.layout.affine else self.integrator.rollout
         with np.errstate(all="ignore"):  # a rollout that leaves the domain is the caller's finding, not a warning
             traj = roll(lambda y: fn(y, *consts), y0, n_frames - anchor, dt, self.substeps)
         pred = traj if len(self._value_slots) == traj.shape[-1] else traj[..., self._value_slots]

@@ -13,6 +13,7 @@ from __future__ import annotations
 import keyword
 import re
 from dataclasses import dataclass
+from functools import cached_property
 
 import sympy
 
@@ -97,21 +98,21 @@ class StateLayout:
         order = dict(zip(self.states, self.orders))
         return tuple(i for i, s in enumerate(self.slots) if s.k == order[s.state] - 1)
 
-    @property
+    @cached_property  # sympy's derivatives, asked once per layout (a compiled field's layout is shared)
     def affine(self) -> bool:
         """Is the field affine in the state (x'' = -a, a spring, a decay): each right-hand side's
         derivative by every slot free of the slots? Then one step of any of the integrators is an
         affine map of the state, which integrators.Integrator.rollout_affine powers up instead of
         stepping frame by frame. A function sympy cannot differentiate cleanly (sign, Abs,
         Piecewise) leaves a slot or a Derivative behind and is not affine."""
-        slots = [s.symbol for s in self.slots]
+        slots = {s.symbol for s in self.slots}
         for expr in self.derivatives:
             for s in slots:
                 try:
                     d = sympy.diff(expr, s)
                 except Exception:  # noqa: BLE001 - anything sympy cannot differentiate is not affine
                     return False
-                if d.free_symbols & set(slots) or d.has(sympy.Derivative, sympy.Subs):
+                if d.free_symbols & slots or d.has(sympy.Derivative, sympy.Subs):
                     return False
         return True
 
