@@ -56,17 +56,17 @@ def naming_line(result, plan) -> str | None:
     return read[1].others(read[0])
 
 
-def another_object(req, plan, result, track, fit: Callable[[Any], tuple[Any, Any]],
+def another_object(req, plan, result, fit: Callable[[Any], tuple[Any, Any]],
                    log: Callable[[str], None] | None = None):
     """(result, request, plan) of another moving object where the reader's path gives a constant
     that is not trustworthy and another object's path gives none (module docstring); None where
-    the fit stays as it is. track: the reader's (Track); fit(request): (its plan, its result) on
-    the same frames, as the first was made."""
+    the fit stays as it is. fit(request): (its plan, its result) on the same frames and track, as
+    the first was made."""
     read = _unnamed(plan.observation)
-    if (req.observe is not None or read is None or track is None or len(track.objects) < 2
+    if (req.observe is not None or read is None or len(read[1].objects) < 2
             or result.meta.get("interrupted") or not _counts(result)[0]):
         return None
-    name = read[0]
+    name, track = read
     say = log or (lambda _line: None)
     taken = track.taken()
     reach = _travel(result)
@@ -103,7 +103,7 @@ def another_object(req, plan, result, track, fit: Callable[[Any], tuple[Any, Any
     was = f"object {taken}" if taken else "a path none of theirs"
     back = f"--observe {name}@{taken}" if taken else f"--observe {name}"  # a model named: nothing is swapped
     fitted.warnings.insert(0, (
-        f"read from object {k} of {len(track.objects)} (about x = {float(np.nanmedian(track.objects[k - 1][:, 0])):.0f} px), "
+        f"read from object {k} of {len(track.objects)} (about x = {track.place(k)[0]:.0f} px), "
         f"not the reader's path ({was}), on which a constant was not trustworthy: the equation follows this one; "
         f"--observe {spec} says so, {back} reads the reader's"))
     return fitted, other, other_plan

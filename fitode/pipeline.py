@@ -155,7 +155,7 @@ def fit_staged(reqs, staged: Staged, *, rate: float = 0.0, callback=None, progre
             return other_plan, api.execute(other, other_plan, staged.frames, time_offset=staged.t0,
                                            callback=callback, progress=progress, rate_std=rate)
 
-        other = another_object(req, plan, result, staged.track, fit, log=log)
+        other = another_object(req, plan, result, fit, log=log)
         if other is not None:
             result, req, plan = other
     if staged.clip is not None:  # what was measured, in the video's pixels

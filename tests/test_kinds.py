@@ -366,8 +366,8 @@ def test_an_interruption_while_another_object_is_fitted_keeps_the_readers_result
         raise KeyboardInterrupt
 
     with pytest.raises(Stopped) as stopped:
-        another_object(req, SimpleNamespace(observation=model), result, track, interrupted)
+        another_object(req, SimpleNamespace(observation=model), result, interrupted)
     assert stopped.value.result is result and result.meta["interrupted"] and asked == ["position@1"]
     result.verdicts["k"]["verdict"] = "ambiguous"  # nothing not trustworthy: nothing else is fitted
-    assert another_object(req, SimpleNamespace(observation=model), result, track, interrupted) is None
+    assert another_object(req, SimpleNamespace(observation=model), result, interrupted) is None
     assert asked == ["position@1"]

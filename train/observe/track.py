@@ -77,6 +77,11 @@ class Track:
         return Track(self.xy[:n], self.area, self.factor, self.note, tuple(p[:n] for p in self.objects), self.followed,
                      self.line, self.enters, self.leaves and n >= len(self))
 
+    def place(self, k: int) -> tuple[float, float]:
+        """The k-th moving object's (1-based, from the left) median place (x, y) in source pixels."""
+        path = self.objects[k - 1]
+        return float(np.nanmedian(path[:, 0])), float(np.nanmedian(path[:, 1]))
+
     def taken(self) -> int | None:
         """Which of the moving objects (1-based, from the left) xy follows: the one whose path lies
         nearest it (the median distance over the frames both place) within the object's size;
@@ -98,8 +103,7 @@ class Track:
         if len(self.objects) < 2:
             return None
         k = self.taken()
-        where = ", ".join(f"{i} about ({float(np.nanmedian(p[:, 0])):.0f}, {float(np.nanmedian(p[:, 1])):.0f})"
-                          for i, p in enumerate(self.objects, 1))
+        where = ", ".join("{} about ({:.0f}, {:.0f})".format(i, *self.place(i)) for i in range(1, len(self.objects) + 1))
         flags = [f"--observe {model}@{i}" for i in range(1, len(self.objects) + 1) if i != k]
         took = (f"the reader took object {k}; where the equation is about another" if k else
                 "the reader's path is none of theirs; where the equation is about one of them")
@@ -114,6 +118,6 @@ class Track:
                               f"{'s' if len(self.objects) != 1 else ''} in view for at least half the clip")
         path = self.objects[k - 1]
         seen = np.isfinite(path[:, 0])
-        note = (f"object {k} of {len(self.objects)} from the left (about x = {float(np.nanmedian(path[:, 0])):.0f} "
+        note = (f"object {k} of {len(self.objects)} from the left (about x = {self.place(k)[0]:.0f} "
                 f"pixels), in view in {int(seen.sum())} of {len(path)} frames; {self.note}")
         return Track(path, self.area, self.factor, note, self.objects)
