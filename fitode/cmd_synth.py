@@ -56,9 +56,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sc.add_argument("--setting", type=float, default=None, help="the scene's varied quantity "
                     "(default: the dataset's middle value)")
     sc.add_argument("--param", metavar="NAME=VALUE", nargs="+", action="extend", default=[],
-                    help="scene parameters (pendulum: zeta theta0_deg omega0; torricelli: h0; "
-                         "sliding_block: mu t0; led: I0; free_fall: h0 floor; spring: c amplitude sway "
-                         "sway_omega distractors legs; throw: flight range radius rest_before rest_after)")
+                    help="scene parameters (" + "; ".join(
+                        f"{n}: {' '.join(i.params)}" for n, i in SCENES.items() if i.params) + ")")
     sc.add_argument("--duration", type=float, default=None, help="seconds (default: the scene's)")
     sc.add_argument("--fps", type=float, default=60.0, help="frames per second (default 60)")
     sc.add_argument("--store-fps", type=float, default=None, metavar="F",

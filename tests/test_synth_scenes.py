@@ -78,6 +78,23 @@ def test_sliding_block_acceleration(alpha):
     assert 0.8 < s[-1] + 0.10 <= 1.0 + 1e-9
 
 
+def test_a_pushed_puck_slides_with_x_dd_minus_a_and_stops_where_its_speed_is_zero():
+    v = synth.scene("sliding_puck", 1.5, fps=120, size=(90, 160), seed=2)
+    ph = v.meta["physical"]
+    x, speed = v.state[:, 0], v.state[:, 1]
+    t = np.arange(len(x)) * v.dt
+    hold, free, stop = ph["rest_before_s"], ph["rest_before_s"] + ph["push_s"], ph["stop_s"]
+    assert np.all(x[t < hold] == 0) and np.all(speed[t < hold] == 0)
+    pushing = (t > hold + v.dt) & (t < free - v.dt)
+    assert np.all(np.diff(speed[pushing]) > 0)  # the hand speeds it up
+    gliding = np.flatnonzero((t > free + 2 * v.dt) & (t < stop - 2 * v.dt))
+    np.testing.assert_allclose(np.diff(x[gliding], 2) / v.dt ** 2, -1.5, rtol=1e-6)
+    assert x[-1] == pytest.approx(0.5 * ph["v0"] * ph["push_s"] + ph["slide"])
+    assert np.all(speed[t >= stop] == 0) and np.all(x[t >= stop] == x[-1])
+    px = v.pixels
+    assert np.linalg.norm(px[-1] - px[0]) == pytest.approx(x[-1] * ph["pixels_per_metre"], rel=1e-9)
+
+
 def test_led_pixels_are_affine_in_brightness():
     v = synth.scene("led", 2.3, duration=1.0)
     b = v.latent[:, 0]

@@ -29,6 +29,11 @@ The dynamics are the physics, not a fit target's approximation:
   held still before and lying still after (rest_before, rest_after seconds); meta["physical"] has
   the flight's frames and the horizontal x. Film it with fps=240 and store it at 30 (a phone's
   slow motion): dataclasses.replace(video, dt=1/30) before write_video.
+- held_pendulum, bumper_cart, bouncing_ball: clips as they are filmed (a hand that holds and lets
+  go; a cart bouncing off its bumper; a ball bouncing), each with a ruler in view.
+- sliding_puck: x'' = -a (exact) while it slides: a puck on a table, at rest, pushed by a hand
+  (its speed rising as 1 - cos over push_s seconds), sliding until friction stops it, at rest;
+  a = 0.5, 1.5, 3 m/s^2; a ruler in view.
 Each equation is, word for word, that of a shipped equation file, named in meta["system"]
 (pendulum, torricelli, sliding_block, led_decay, free_fall_scale). The ground truth (its
 constants, the latent trajectory) is in SynthVideo.truth and .latent; physical extras (g, a,
@@ -931,6 +936,75 @@ def _bouncing_ball(g, rng, duration, dt, h, w, p) -> _Scene:
                   state=np.stack([y, v], axis=1), state_names=("y", "y'"))
 
 
+def _sliding_puck(a, rng, duration, dt, h, w, p) -> _Scene:
+    """A dark puck on a table seen from above: at rest, pushed by a hand (a smooth push of push_s
+    seconds), sliding free until friction stops it (x'' = -a while it moves), then at rest: the
+    slide ends where its velocity reaches zero, not at a wall. dot=1: a white sticker in its middle."""
+    if not 0.1 <= a <= 6.0:
+        raise FitodeError(f"the puck's deceleration a must be between 0.1 and 6 m/s^2, got {a}")
+    rest_before = float(p.get("rest_before", rng.uniform(0.2, 0.5)))
+    push = float(p.get("push_s", rng.uniform(0.08, 0.2)))
+    rest_after = float(p.get("rest_after", rng.uniform(0.3, 0.8)))
+    table = 1.0
+    slide = float(p.get("slide", rng.uniform(0.45, 0.7) * table))  # metres from the push's end to the stop
+    if not (rest_before >= 0 and push > 0 and rest_after >= 0 and 0.05 <= slide <= table):
+        raise FitodeError("rest_before and rest_after must not be negative, push_s positive and slide "
+                          f"between 0.05 and {table:g} m")
+    v0 = float(np.sqrt(2 * a * slide))
+    glide = v0 / a
+    n = _frame_count(duration, rest_before + push + glide + rest_after, dt, "the puck's slide")
+    t = np.arange(n) * dt - rest_before
+    # the push: the velocity rises as (1 - cos) from 0 to v0 over `push` seconds
+    x_push = 0.5 * v0 * push  # distance covered by the push (the mean of the cosine ramp is v0 / 2)
+    x = np.zeros(n)
+    v = np.zeros(n)
+    m = (t > 0) & (t < push)
+    u = t[m] / push
+    v[m] = 0.5 * v0 * (1 - np.cos(np.pi * u))
+    x[m] = 0.5 * v0 * (t[m] - push / np.pi * np.sin(np.pi * u))
+    s = np.clip(t - push, 0.0, glide)
+    m = t >= push
+    x[m] = x_push + v0 * s[m] - 0.5 * a * s[m] ** 2
+    v[m] = v0 - a * s[m]
+    ppm = rng.uniform(0.75, 0.85) * w / (x_push + slide + 0.15)
+    tilt = np.deg2rad(rng.uniform(-6, 6))  # the camera not quite square to the push
+    d = np.array([np.cos(tilt), np.sin(tilt)])
+    x0 = np.array([0.08 * w, rng.uniform(0.45, 0.6) * h])
+    radius = 0.025 * ppm
+    bg = _wood(rng, h, w, base=(0.62, 0.5, 0.36))
+    cv = R.Canvas(bg, 4)
+    gap = 0.5 if 0.5 * ppm < 0.8 * w else 0.25
+    ma = (0.1 * w, 0.12 * h)
+    mb = (0.1 * w + gap * ppm, 0.12 * h)
+    R.scale_marks(cv, ma, mb)
+    skin = _rgb(0.85, 0.62, 0.5)
+
+    dot = bool(p.get("dot", 0))
+
+    def draw(c: R.Canvas, i: int) -> None:
+        cx, cy = x0 + d * x[i] * ppm
+        box = (cx - radius - 1, cy - radius - 1, cx + radius + 1, cy + radius + 1)
+        c.paint(R.circle(cx, cy, radius), _rgb(0.2, 0.2, 0.22), box)  # the rim, worn lighter
+        c.paint(R.circle(cx, cy, 0.8 * radius), _rgb(0.06, 0.06, 0.07), box)
+        if dot:  # a white sticker in the middle: the change is a ring (see the closing notes)
+            c.paint(R.circle(cx, cy, 0.45 * radius), 0.85, box)
+        if t[i] < push:  # the hand behind the puck until the push ends, then drawn back out of view
+            hx, hy = np.array([cx, cy]) - d * (radius + 0.9 * 2.2 * radius)
+            size = 2.2 * radius
+            c.paint(R.hand(hx, hy, size, float(tilt)), skin, (hx - 2.5 * size, hy - 2.5 * size, hx + 2.5 * size,
+                                                               hy + 2.5 * size))
+
+    return _Scene(background=cv.image, draw=draw, latent=x[:, None], latent_names=("x",),
+                  truth={"a": float(a)},
+                  physical={"a": float(a), "a_px": float(a * ppm), "v0": v0, "push_s": push, "slide": slide,
+                            "rest_before_s": rest_before, "rest_after_s": rest_after,
+                            "release_frame": int(np.ceil((rest_before + push) / dt)),
+                            "stop_s": rest_before + push + glide, "tilt_deg": float(np.rad2deg(tilt)),
+                            "pixels_per_metre": float(ppm), "ruler": _scale_truth(ma, mb, gap)},
+                  state=np.stack([x, v], axis=1), state_names=("x", "x'"),
+                  pixels=np.stack([x0[0] + d[0] * x * ppm - 0.5, x0[1] + d[1] * x * ppm - 0.5], axis=1))
+
+
 @dataclass(frozen=True)
 class SceneInfo:
     """One scene of the dataset: what it varies, how it is drawn, the equation it obeys."""
@@ -982,6 +1056,9 @@ SCENES: dict[str, SceneInfo] = {i.name: i for i in (
     SceneInfo("bouncing_ball", "g", (1.62, 9.80665, 24.79), "m/s^2",
               "a ball held, dropped and bouncing on the floor", None,
               ("restitution", "bounces", "h0", "rest_before"), THROW_EQUATION, "throw", _bouncing_ball),
+    SceneInfo("sliding_puck", "a", (0.5, 1.5, 3.0), "m/s^2",
+              "a puck pushed by a hand across a table, sliding until friction stops it", None,
+              ("rest_before", "push_s", "rest_after", "slide", "dot"), "x'' = -a", "incline_cart", _sliding_puck),
 )}
 
 
