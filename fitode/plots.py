@@ -497,7 +497,8 @@ def _shade_stretch(ax, t: np.ndarray, stretch: Mapping[str, Any] | None, train_f
         ax.axvspan(t[train_frames], t[-1], color="0.85", zorder=0, label="not trained on")
 
 
-EVENT_COLOURS = {"hold": "tab:purple", "moved": "tab:purple", "release": "tab:green", "enter": "tab:green",
+EVENT_COLOURS = {"hold": "tab:purple", "moved": "tab:purple", "push": "tab:brown", "release": "tab:green",
+                 "enter": "tab:green",
                  "bounce": "tab:red",
                  "stop": "0.3", "lost": "0.3", "gone": "0.3"}
 
@@ -520,7 +521,8 @@ def _mark_pieces(ax, t: np.ndarray, pieces: Mapping[str, Any] | None) -> None:
         f = int(e["frame"])
         if e["kind"] == "release" or not 0 <= f < n:
             continue
-        label = {"hold": "held until", "moved": "moved by something else until", "bounce": "a bounce",
+        label = {"hold": "held until", "moved": "moved by something else until", "push": "pushed until",
+                 "bounce": "a bounce",
                  "enter": "whole in the view from",
                  **ENDS}.get(e["kind"], e["kind"])
         ax.axvline(t[f], color=EVENT_COLOURS.get(e["kind"], "0.3"), lw=1.0, ls="--",

@@ -163,3 +163,30 @@ def test_a_motion_that_slows_smoothly_has_no_settled_end():
     decay = np.exp(-0.25 * t) + 1e-5 * np.random.default_rng(2).standard_normal(len(t))
     for x in (drain, decay):
         assert settled_ends(x[:, None], rest_window(0.05)) == (0, 0)
+
+
+def test_a_stretch_that_runs_past_a_stop_by_friction_ends_where_its_trajectory_turns():
+    # x'' = -a turns back where the speed reaches zero; the thing at rest does not: the frames past the
+    # turn are left out. A decay that settles into its rest does not turn back, and is kept whole.
+    from fitode.train.stretch import _turned
+
+    dt, a = 1 / 60, 546.0
+    t = np.arange(120) * dt
+    stop = 80
+    x = np.where(t < stop * dt, 0.5 * a * (stop * dt - t) ** 2, 0.0)
+    x = (-x + np.random.default_rng(0).normal(0, 0.05, len(t)))[:, None]
+
+    def parabola(lo, hi):
+        s = np.arange(hi - lo)
+        return (np.polyval(np.polyfit(s, x[lo:hi, 0], 2), s) - x[lo:hi, 0])[:, None]
+
+    assert _turned(x, parabola, 10, stop + 5, stop, 12, 0.05) in (stop, stop + 1)
+    assert _turned(x, parabola, 10, stop + 1, stop, 12, 0.05) == stop + 1  # too close to the turn to tell
+    decay = (100 * np.exp(-3 * t) + np.random.default_rng(1).normal(0, 0.05, len(t)))[:, None]
+
+    def exponential(lo, hi):
+        s = t[lo:hi]
+        k, c = np.polyfit(s, np.log(np.maximum(decay[lo:hi, 0], 1e-3)), 1)
+        return (np.exp(c + k * s) - decay[lo:hi, 0])[:, None]
+
+    assert _turned(decay, exponential, 0, 120, 100, 12, 0.05) == 120

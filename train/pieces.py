@@ -61,6 +61,8 @@ SHORT = 6      # a stretch between two impacts this many frames long, one trajec
 #                piece though shorter than a seed (a ball's third flight filmed at 30 fps is 7 frames)
 LOST_GAP = 1.0  # pieces apart by more than this many velocity windows that no impact explains are two
 #                 motions (a ball that rolls away and is picked up): the one that travels farther is kept
+PUSHED = TOL  # a first piece whose trajectory misses by more than this many times what it misses without its
+#               first release window starts with a push, not the motion (_pushed)
 JOIN = 2.0     # two neighbours are one trajectory where it misses their union by at most this many times
 #                their own misfits (or the noise)
 
@@ -71,7 +73,8 @@ ENDS = {"stop": "comes to rest", "lost": "leaves the trajectory", "gone": "leave
 
 @dataclass
 class Event:
-    """What happens at a frame: hold, release, bounce, stop, moved (by something else), lost (the
+    """What happens at a frame: hold, push (a hand that moves it until then, as a puck is pushed),
+    release, bounce, stop, moved (by something else), lost (the
     path leaves the trajectory), gone (the object leaves the view: the reader's track loses it),
     enter (the object comes into the view: the first piece starts where it is whole in it)."""
 
@@ -115,7 +118,10 @@ class Pieces:
         if hold is not None:
             words.append(("held still until " if hold.kind == "hold" else
                           "moved by something other than the equation (a hand?) until ") + t(hold.frame))
-            if "release" in kinds:
+            push = next((e for e in self.events if e.kind == "push"), None)
+            if push is not None:
+                words.append(f"pushed until {t(push.frame)}")
+            elif "release" in kinds:
                 words.append("released")
         bounces = [e.frame for e in self.events if e.kind == "bounce"]
         n = len(self.spans)
@@ -322,6 +328,7 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
         keep = [i for i, v in enumerate(travel) if v >= HOLD_SHARE * max(travel) or 0 < i < len(spans) - 1]
         spans = [spans[i] for i in keep]
     events: list[Event] = []
+    pushed = None  # where a push starts, that the first piece is cut after
     if spans and not enters and (spans[0][0] > 0 or rest[0]):
         # a release is a start: the motion leaves the held place from rest; the search may have
         # grown the first piece into the hold (a fall from rest is one trajectory with it, nearly),
@@ -330,9 +337,18 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
         opening = int(np.argmin(rest)) if rest[0] else 0  # the first frame after the clip's opening rest
         r = release(x, 0, max(a, opening), b, dt)
         if r is not None and b - r >= min(min_len, SHORT) and (b - r >= min_len or _fits(fit, r, b, noise)):
-            spans[0] = (r, b)
+            # a push is no release: where the thing left its place, but the trajectory does not
+            # reach back there, or its first frames miss it, a hand moved it until the piece starts
+            if r >= a or _extends(fit, r, a, b, noise):
+                spans[0] = (r, b)
+            else:
+                pushed = r
+        a = spans[0][0]
+        spans[0] = (_pushed(fit, a, b, noise, _release_window(dt)), b)
+        if spans[0][0] > a and pushed is None:
+            pushed = a
     if spans:
-        first = spans[0][0]
+        first = spans[0][0] if pushed is None else pushed
         if enters:
             events.append(Event(first, "enter"))
         elif first > 0:
@@ -342,7 +358,9 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
                      # or settled: a hold read to a hundredth of a pixel wanders more than its noise
                      or settled_ends(x, rest_window(dt))[0] >= first - rest_window(dt))
             events.append(Event(first, "hold" if still else "moved"))
-            events.append(Event(first, "release"))
+            if pushed is not None:
+                events.append(Event(spans[0][0], "push"))
+            events.append(Event(spans[0][0], "release"))
         for (_, b), (a, _) in zip(spans, spans[1:]):
             hit = next((c for c in cuts if b - 1 <= c[0] and c[1] <= a + 1), None)
             events.append(Event((hit[0] + hit[1]) // 2 if hit else a, "bounce" if hit else "lost"))
@@ -472,6 +490,34 @@ def _release_window(dt: float) -> int:
 def _side(dt: float) -> int:
     """The frames each side a velocity is read from (SIDE_S, within SIDE_FRAMES)."""
     return int(np.clip(round(SIDE_S / dt), *SIDE_FRAMES))
+
+
+def _pushed(fit, a: int, b: int, noise: float, w: int) -> int:
+    """Where the first piece [a, b) after a hold starts once a push is left out: a hand that pushes
+    a puck or a cart starts it from rest over a few frames with a force of its own, and the
+    search's slack for a long path's bends (stretch.MAIN_SLACK) grows the slide into the push's
+    last frames (a -2.7% on a generated puck). One trajectory over [s, b) may miss by at most
+    PUSHED times what one over [s + w, b) misses (w: a release window); where it misses by more,
+    the first frame s is a push's, and the piece starts at the first s from which it does not (a
+    release from rest, a swing's first turn, fit as well as what follows them)."""
+    for s in range(a, a + w + 1):
+        if b - s < 3 * w:
+            break
+        with_, without = fit(s, b), _rms(fit(s + w, b))
+        if with_ is None or without is None:
+            break
+        if _rms(with_) <= PUSHED * max(without, noise):
+            return s
+    return a
+
+
+def _extends(fit, r: int, a: int, b: int, noise: float) -> bool:
+    """Whether the piece [a, b) starts as early as r: one trajectory over [r, b) misses the added
+    frames [r, a) by at most TOL times the piece's own misfit (or the noise). A hand that pushes a
+    puck starts it from rest as a parabola too, and the push is no part of the slide (a generated
+    puck's first piece was pulled back over a 0.2 s push: a -11%)."""
+    whole, own = fit(r, b), _rms(fit(a, b))
+    return whole is not None and own is not None and _rms(whole[:a - r]) <= TOL * max(own, noise)
 
 
 def _fits(fit, a: int, b: int, noise: float) -> bool:

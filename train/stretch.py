@@ -161,6 +161,12 @@ def find_stretch(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray 
         return Stretch(0, T, _why_start(0, rest, dt), _why_end(T, T, rest, dt), noise)
     runs = _runs(~rest)
     best: tuple[int, int] | None = None
+    best_at = 0.0  # the level the best stretch was grown at
+    # a closing rest is entered at the noise's level, whatever slack the motion had: past a stop
+    # that friction makes (a puck, a block), x'' = -a turns back by a t^2 / 2, which a slack for a
+    # long path's bends (MAIN_SLACK) let the growth take 0.19 s of (a generated puck: a -3.4%)
+    moving = np.flatnonzero(~rest)
+    closing = int(moving[-1]) + 1 if len(moving) else T
 
     def reach(span: tuple[int, int] | None) -> float:
         # how far the path moves over a stretch: a rest (a ball on the floor, a hand that holds it)
@@ -186,7 +192,7 @@ def find_stretch(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray 
         # an idealised equation by a few local levels (air drag is not linear): cutting it there
         # kept the real ornament's last 2 s (L +1.9%)
         if whole is not None and whole <= BREAK * level:
-            best = _grow(fit, a, b, 0, T, level, whole) or (a, b)
+            best, best_at = _grow(fit, a, b, 0, T, level, whole, stop=(closing, noise)) or (a, b), level
             continue
         grown_from = [(int(s), level, seeds[int(s)]) for s in starts]
         main = _main_seed(x[a:b], seed)
@@ -203,13 +209,18 @@ def find_stretch(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray 
                 limit = max(BREAK * max(level, own), MAIN_SLACK * reach((a, b)))
                 grown_from.append((s, limit / TOL, own))
         for s, at, first in grown_from:
-            if best is not None and best[0] <= s and s + seed <= best[1]:
+            # a seed inside the best stretch grows into it again, unless it may miss by more (the
+            # main seed: a generated puck's first seed grew to 16 frames around it, and it was
+            # skipped, the slide's 80 frames left out)
+            if best is not None and best[0] <= s and s + seed <= best[1] and at <= best_at:
                 continue
-            grown = _grow(fit, s, s + seed, 0, T, at, first)
+            grown = _grow(fit, s, s + seed, 0, T, at, first, stop=(closing, noise))
             if grown is not None and reach(grown) > reach(best):
-                best = grown
+                best, best_at = grown, at
     if best is None:
         best = (0, T)
+    if best[1] > closing:
+        best = (best[0], _turned(x, fit, best[0], best[1], closing, min_len, noise))
     if not rest.any() and reach((0, best[0])) >= HELD_SHARE * reach(best):
         # a path that never rests is searched for a hand that holds it before the motion (search):
         # what the search leaves out before the stretch must go nearly nowhere. Where it moves as
@@ -263,10 +274,35 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
 
 
-def _grow(fit, a: int, b: int, lo: int, hi: int, noise: float, first: float | None) -> tuple[int, int] | None:
+def _turned(x: np.ndarray, fit, a: int, b: int, closing: int, min_len: int, noise: float) -> int:
+    """The end of the stretch [a, b) that runs into the clip's closing rest (from frame `closing`):
+    where its trajectory turns back there by more than a rest may move (REST_SIGMAS noise spreads),
+    the frame after the turn. A thing that friction stops (a puck, a block) comes to rest where its
+    speed reaches zero, and x'' = -a would turn back from there: the rest's first frames, near the
+    turn, still fit. A decay that settles (a drain, a light) does not turn back, and a swing that
+    dies out in the noise turns back by less."""
+    r = fit(a, b)
+    if r is None or r.shape != x[a:b].shape:
+        return b
+    model = x[a:b] + r  # the trajectory (the residuals are the prediction less the path)
+    c = int(np.argmax(np.ptp(model, axis=0)))
+    first = max(closing - a - 1, 1)
+    way = np.sign(model[first, c] - model[0, c])
+    back = np.flatnonzero(way * np.diff(model[first - 1:, c]) < 0)
+    if not len(back):
+        return b
+    turn = first + int(back[0]) - 1  # the frame the trajectory turns at
+    moved = float(np.max(way * (model[turn, c] - model[turn:, c])))
+    end = a + turn + 1
+    return end if moved > REST_SIGMAS * noise and end - a >= min_len else b
+
+
+def _grow(fit, a: int, b: int, lo: int, hi: int, noise: float, first: float | None,
+          stop: tuple[int, float] | None = None) -> tuple[int, int] | None:
     """[a, b) (its fit's RMS `first`) grown within [lo, hi) while one trajectory still fits it: at
     each end, a bisection for the longest extension whose added frames still fit (a dozen fits,
-    not one per frame)."""
+    not one per frame). stop (frame, level): the frames from `frame` on (a closing rest) are
+    added only where they miss by at most TOL times max(level, first)."""
     if first is None or first > TOL / 2 * noise:
         return None
     level = max(first, noise)
@@ -277,7 +313,11 @@ def _grow(fit, a: int, b: int, lo: int, hi: int, noise: float, first: float | No
             na, nb = (a, b + ext) if side == "end" else (a - ext, b)
             r = fit(na, nb)
             new = None if r is None else r[:ext] if side == "start" else r[r.shape[0] - ext:]
-            if r is not None and _rms(r) <= TOL / 2 * level and _rms(new) <= TOL * level:
+            resting = None
+            if r is not None and side == "end" and stop is not None and nb > stop[0]:
+                resting = r[r.shape[0] - (nb - max(stop[0], b)):]
+            if (r is not None and _rms(r) <= TOL / 2 * level and _rms(new) <= TOL * level
+                    and (resting is None or _rms(resting) <= TOL * max(stop[1], first))):
                 good = ext
             else:
                 bad = ext
