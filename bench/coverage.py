@@ -23,6 +23,7 @@ with each end clicked off by a pixel, realistic.clicked_ruler). The cases:
 | bounce          | bouncing_ball, its ruler clicked: 2-4 bounces | g, restitution, bounces, noise, size   |
 | block-rest      | sliding_block at 240 fps, rests each end, its ruler clicked | alpha, rests, noise, size |
 | throw           | throw at 240 fps, held, flying, at rest, its ruler clicked | g, angle, range, ball, rests, noise, size |
+| puck            | sliding_puck: held, pushed by a hand, sliding to a stop by friction, its ruler clicked | a, push, slide, rests, fps, noise, size |
 
 Per clip: the truth, the estimate, its 95% interval, its verdict. Printed: the coverage of the
 95% intervals (how often they hold the truth), the false-trust rate (TRUSTED and outside its 99%
@@ -62,13 +63,16 @@ import realistic  # noqa: E402
 PIECES_CASES = ("held-pendulum", "cart", "bounce", "block-rest")
 # drawn from a third stream, after the pieces, so that both lists before them stay what they were
 LATER_CASES = ("throw",)
+# and a fourth: a puck pushed by a hand, sliding until friction stops it
+PUSHED_CASES = ("puck",)
 CASES = ("oscillator", "pendulum-small", "pendulum-large", "fall", "drain", "led", "led-linear", "spring") + PIECES_CASES \
-    + LATER_CASES
+    + LATER_CASES + PUSHED_CASES
 SPRING = {"system": "spring", "quantity": "w2", "unit": "1/s^2"}
 SPECS = {"spring": SPRING, "held-pendulum": {"system": "pendulum", "quantity": "L", "unit": "m"},
          "cart": {"system": "incline_cart", "quantity": "a", "unit": "m/s^2"},
          "bounce": {"system": "throw", "quantity": "g", "unit": "m/s^2"},
-         "throw": {"system": "throw", "quantity": "g", "unit": "m/s^2"}}
+         "throw": {"system": "throw", "quantity": "g", "unit": "m/s^2"},
+         "puck": {"system": "incline_cart", "quantity": "a", "unit": "m/s^2"}}
 PER_CASE = 8
 Z99_OVER_Z95 = 2.5758 / 1.9600
 TRUST_OFF = 0.05
@@ -94,7 +98,7 @@ def clip_list(cases: list[str], seed: int, per_case: int = PER_CASE) -> list[dic
     cases = [c for c in cases if c not in missing_cases()]
     out = []
     for i in range(per_case):
-        for case in [c for c in cases if c not in PIECES_CASES + LATER_CASES]:
+        for case in [c for c in cases if c not in PIECES_CASES + LATER_CASES + PUSHED_CASES]:
             size = SIZES[int(rng.integers(len(SIZES)))]
             noise = float(rng.uniform(0.5, 2.0))
             task: dict[str, Any] = {"case": case, "seed": seed * 1000 + len(out), "train": {}, "keep": None,
@@ -111,30 +115,21 @@ def clip_list(cases: list[str], seed: int, per_case: int = PER_CASE) -> list[dic
                 if case == "spring":
                     task["spec"] = SPRING
             out.append(task)
-    rng = np.random.default_rng([seed, 32])
-    for i in range(per_case):
-        for j, case in enumerate(c for c in cases if c in PIECES_CASES):
-            size = SIZES[int(rng.integers(len(SIZES)))]
-            scene, kwargs = _pieces_case(case, rng)
-            task = {"case": case, "seed": seed * 1000 + 500 + len(PIECES_CASES) * i + j, "train": {}, "keep": None,
-                    "calibrate": True, "ruler": True, "scene": scene, "setting": kwargs.pop("setting"),
-                    "scene_kwargs": {**kwargs, "size": size, "noise": float(rng.uniform(0.5, 2.0))}}
-            if case in SPECS:
-                task["spec"] = SPECS[case]
-            out.append(task)
-    rng = np.random.default_rng([seed, 33])
-    for i in range(per_case):
-        for j, case in enumerate(c for c in cases if c in LATER_CASES):
-            size = SIZES[int(rng.integers(len(SIZES)))]
-            # a ball 3 to 7 cm across thrown at 15-75 degrees over 0.6-3 m, filmed at 240 fps from its
-            # hold in the hand to its rest where it lands, the frames stored at 240
-            kwargs = {"angle": float(rng.uniform(15.0, 75.0)), "range": float(rng.uniform(0.6, 3.0)),
-                      "radius": float(rng.uniform(0.015, 0.035)), "rest_before": float(rng.uniform(0.05, 0.5)),
-                      "rest_after": float(rng.uniform(0.05, 0.5)), "fps": 240.0}
-            task = {"case": case, "seed": seed * 1000 + 800 + len(LATER_CASES) * i + j, "train": {}, "keep": None,
-                    "calibrate": True, "ruler": True, "scene": "throw", "setting": float(rng.uniform(1.6, 25.0)),
-                    "scene_kwargs": {**kwargs, "size": size, "noise": float(rng.uniform(0.5, 2.0))}, "spec": SPECS[case]}
-            out.append(task)
+    # the clips as they are filmed, each family from a stream of its own (the lists before it stay
+    # what they were): the pieces, then the throws, then the pushed pucks
+    for key, base, kinds, draw in ((32, 500, PIECES_CASES, _pieces_case), (33, 800, LATER_CASES, _throw_case),
+                                   (34, 900, PUSHED_CASES, _puck_case)):
+        rng = np.random.default_rng([seed, key])
+        for i in range(per_case):
+            for j, case in enumerate(c for c in cases if c in kinds):
+                size = SIZES[int(rng.integers(len(SIZES)))]
+                scene, kwargs = draw(case, rng)
+                task = {"case": case, "seed": seed * 1000 + base + len(kinds) * i + j, "train": {}, "keep": None,
+                        "calibrate": True, "ruler": True, "scene": scene, "setting": kwargs.pop("setting"),
+                        "scene_kwargs": {**kwargs, "size": size, "noise": float(rng.uniform(0.5, 2.0))}}
+                if case in SPECS:
+                    task["spec"] = SPECS[case]
+                out.append(task)
     return out
 
 
@@ -149,6 +144,21 @@ def _pieces_case(case: str, rng) -> tuple[str, dict[str, Any]]:
     # a block that rests, slides and stops, filmed at 240 fps
     return "sliding_block", {"setting": float(rng.uniform(20.0, 35.0)), "rest_before": float(rng.uniform(0.2, 0.5)),
                              "rest_after": float(rng.uniform(0.2, 0.5)), "fps": 240.0}
+
+
+def _throw_case(case: str, rng) -> tuple[str, dict[str, Any]]:
+    # a ball 3 to 7 cm across thrown at 15-75 degrees over 0.6-3 m, filmed at 240 fps from its hold in
+    # the hand to its rest where it lands, the frames stored at 240
+    return "throw", {"angle": float(rng.uniform(15.0, 75.0)), "range": float(rng.uniform(0.6, 3.0)),
+                     "radius": float(rng.uniform(0.015, 0.035)), "rest_before": float(rng.uniform(0.05, 0.5)),
+                     "rest_after": float(rng.uniform(0.05, 0.5)), "fps": 240.0, "setting": float(rng.uniform(1.6, 25.0))}
+
+
+def _puck_case(case: str, rng) -> tuple[str, dict[str, Any]]:
+    # mu 0.03-0.4, pushed over 0.05-0.25 s, sliding 0.3-0.9 m, filmed at 60, 120 or 240 fps
+    return "sliding_puck", {"rest_before": float(rng.uniform(0.1, 0.5)), "push_s": float(rng.uniform(0.05, 0.25)),
+                            "slide": float(rng.uniform(0.3, 0.9)), "rest_after": float(rng.uniform(0.2, 0.8)),
+                            "fps": float(rng.choice([60.0, 120.0, 240.0])), "setting": float(rng.uniform(0.3, 4.0))}
 
 
 def missing_cases() -> list[str]:

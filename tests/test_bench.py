@@ -225,16 +225,21 @@ def test_coverage_list_is_fixed_covers_every_case_and_counts_as_defined():
     assert first == again and len(first) >= 40
     here = set(coverage.CASES) - set(coverage.missing_cases())
     later = set(coverage.LATER_CASES) & here
-    single, pieces = here - set(coverage.PIECES_CASES) - later, set(coverage.PIECES_CASES) & here
+    pushed = set(coverage.PUSHED_CASES) & here
+    single, pieces = here - set(coverage.PIECES_CASES) - later - pushed, set(coverage.PIECES_CASES) & here
     assert {t["case"] for t in first[: len(single)]} == single  # the earlier list, unchanged, first
     n_single = len(single) * coverage.PER_CASE
     assert {t["case"] for t in first[:n_single]} == single
     assert {t["case"] for t in first[n_single: n_single + len(pieces)]} == pieces
     # the throws come after the pieces, from a stream of their own: the lists before them stay what they were
     n_pieces = len(pieces) * coverage.PER_CASE
-    assert "throw" in later and {t["case"] for t in first[n_single + n_pieces:]} == later
-    without = coverage.clip_list([c for c in coverage.CASES if c not in later], 0)
-    assert first[: len(without)] == without
+    n_later = len(later) * coverage.PER_CASE
+    assert "throw" in later and {t["case"] for t in first[n_single + n_pieces: n_single + n_pieces + n_later]} == later
+    # and the pushed pucks after those, from a fourth stream
+    assert pushed == {"puck"} and {t["case"] for t in first[n_single + n_pieces + n_later:]} == pushed
+    for drop in (later | pushed, pushed):
+        without = coverage.clip_list([c for c in coverage.CASES if c not in drop], 0)
+        assert first[: len(without)] == without
     assert len({t["seed"] for t in first}) == len(first)  # every clip its own draw
     assert "led-linear" in here and any(t["scene_kwargs"].get("curve") == "linear" for t in first if "scene" in t)
     latent = {"truth": 1.0, "estimate": 1.0, "interval": [0.9, 1.1], "verdict": "not trustworthy", "latent_units": True}
