@@ -34,7 +34,7 @@ counts as a clip without an interval. The spring case runs where fitode.synth ha
 scene (a can bouncing on a spring, swaying, a ball carried across behind it); without it the
 bench says the case is missing. Not varied: the camera's angle (no generator has one).
 
-    python bench/coverage.py                   # or: fitode bench coverage (48 clips: hours on 2 cores)
+    python bench/coverage.py                   # or: fitode bench coverage (112 clips: about 10 minutes on 2 cores)
     python bench/coverage.py --clips 6         # the first 6 clips of the same fixed list
     python bench/coverage.py --cases held-pendulum,cart,bounce,block-rest --clips 8   # clips as they are filmed
     python bench/coverage.py --quick           # smoke test: 2 tiny clips, 10 steps (numbers mean nothing)
