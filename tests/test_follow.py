@@ -258,17 +258,3 @@ def test_a_large_object_is_searched_for_at_half_the_resolution_and_found_as_exac
     err = np.linalg.norm(found.xy[~found.hidden] - (np.stack([cx, cy], axis=1) - 0.5)[~found.hidden], axis=1)
     assert float(np.sqrt(np.mean(err ** 2))) < 0.2 and err.max() < 0.5
 
-
-def test_a_puck_whose_change_is_a_ring_is_cut_from_a_frame_where_the_cut_is_the_puck():
-    # a dark puck with a white sticker: its change is a ring about a light middle, and the region
-    # nearest to the detector's place in a frame of its hold was the hand beside it; that template
-    # was lost once the hand let go: the object tracker placed it in none of the 217 frames
-    from fitode import synth
-
-    v = synth.scene("sliding_puck", 2.78, fps=120, size=(135, 240), seed=14902, dot=1, rest_before=0.43,
-                    push_s=0.17, slide=0.35, rest_after=0.7)
-    frames = np.array([np.dot(f[..., :3], [0.299, 0.587, 0.114]).round().astype(np.uint8) for f in v.frames])
-    found = follow_best(frames, measure_paths(frames, MAX_OBJECTS)[0])
-    assert found is not None and float(found.hidden.mean()) < 0.05
-    err = np.linalg.norm(found.xy - v.pixels - np.median(found.xy - v.pixels, axis=0), axis=1)
-    assert float(np.sqrt(np.mean(err ** 2))) < 0.5

@@ -273,12 +273,6 @@ def _seed(stack, seed_xy, background, noise):
         return None
     areas = np.array([c[4] for c in cuts.values()])
     typical = float(np.median(areas))
-    # where most cuts are centred on the detector's place, only those: a puck whose change is a ring
-    # about its light middle was cut, in one frame of its hold, as the hand beside it (the region
-    # nearest to that place), and that template was lost when the hand let go
-    near = {t: c for t, c in cuts.items() if np.linalg.norm(c[5] - seed_xy[t]) <= 0.5 * math.sqrt(typical)}
-    if 2 * len(near) >= len(cuts):
-        cuts = near
     middle = np.nanmedian(seed_xy, axis=0)
     best, far = None, -1.0
     for t, c in cuts.items():
