@@ -986,9 +986,9 @@ def _sliding_puck(a, rng, duration, dt, h, w, p) -> _Scene:
         box = (cx - radius - 1, cy - radius - 1, cx + radius + 1, cy + radius + 1)
         c.paint(R.circle(cx, cy, radius), _rgb(0.2, 0.2, 0.22), box)  # the rim, worn lighter
         c.paint(R.circle(cx, cy, 0.8 * radius), _rgb(0.06, 0.06, 0.07), box)
-        if dot:  # a white sticker in the middle: the change is a ring (see the closing notes)
+        if dot:  # a white sticker: its change is a ring about a light middle (docs/measured-paths.md)
             c.paint(R.circle(cx, cy, 0.45 * radius), 0.85, box)
-        if t[i] < push:  # the hand behind the puck until the push ends, then drawn back out of view
+        if t[i] < push:  # the hand behind the puck while it holds and pushes; gone once it lets go
             hx, hy = np.array([cx, cy]) - d * (radius + 0.9 * 2.2 * radius)
             size = 2.2 * radius
             c.paint(R.hand(hx, hy, size, float(tilt)), skin, (hx - 2.5 * size, hy - 2.5 * size, hx + 2.5 * size,
