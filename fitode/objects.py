@@ -46,14 +46,21 @@ def _unnamed(model) -> tuple[str, Any] | None:
     return (name, track) if name in MODELS and track is not None else None
 
 
+def _doubted(result, plan) -> tuple[str, Any] | None:
+    """_unnamed's (model name, track) where, besides, the fit ran whole and a constant came out not
+    trustworthy: where another object may be the equation's; None otherwise."""
+    read = _unnamed(plan.observation)
+    if read is None or result.meta.get("interrupted") or not _counts(result)[0]:
+        return None
+    return read
+
+
 def naming_line(result, plan) -> str | None:
     """Where a constant is not trustworthy and the reader's path came from one of several moving
     objects the observation did not name, the line that names them and the flag that reads each
     (Track.others); None otherwise."""
-    read = _unnamed(plan.observation)
-    if read is None or result.meta.get("interrupted") or not _counts(result)[0]:
-        return None
-    return read[1].others(read[0])
+    read = _doubted(result, plan)
+    return None if read is None else read[1].others(read[0])
 
 
 def another_object(req, plan, result, fit: Callable[[Any], tuple[Any, Any]],
@@ -62,9 +69,8 @@ def another_object(req, plan, result, fit: Callable[[Any], tuple[Any, Any]],
     that is not trustworthy and another object's path gives none (module docstring); None where
     the fit stays as it is. fit(request): (its plan, its result) on the same frames and track, as
     the first was made."""
-    read = _unnamed(plan.observation)
-    if (req.observe is not None or read is None or len(read[1].objects) < 2
-            or result.meta.get("interrupted") or not _counts(result)[0]):
+    read = _doubted(result, plan)
+    if req.observe is not None or read is None or len(read[1].objects) < 2:
         return None
     name, track = read
     say = log or (lambda _line: None)

@@ -61,8 +61,8 @@ SHORT = 6      # a stretch between two impacts this many frames long, one trajec
 #                piece though shorter than a seed (a ball's third flight filmed at 30 fps is 7 frames)
 LOST_GAP = 1.0  # pieces apart by more than this many velocity windows that no impact explains are two
 #                 motions (a ball that rolls away and is picked up): the one that travels farther is kept
-PUSHED = TOL  # a first piece whose trajectory misses by more than this many times what it misses without its
-#               first release window starts with a push, not the motion (_pushed)
+FORCED = TOL  # a first (last) piece whose trajectory misses by more than this many times what it misses
+#               without its first (last) release window starts with a push (ends with an impact) (_unforced)
 JOIN = 2.0     # two neighbours are one trajectory where it misses their union by at most this many times
 #                their own misfits (or the noise)
 
@@ -344,7 +344,7 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
             else:
                 pushed = r
         a = spans[0][0]
-        spans[0] = (_pushed(fit, a, b, noise, _release_window(dt)), b)
+        spans[0] = (_unforced(fit, a, b, noise, _release_window(dt)), b)
         if spans[0][0] > a and pushed is None:
             pushed = a
     if spans:
@@ -367,7 +367,7 @@ def find_pieces(x: np.ndarray, dt: float, fit: Callable[[int, int], np.ndarray |
         last = spans[-1][1]
         if last < T and not leaves:
             # the impact that stops it is no part of the motion either
-            spans[-1] = (spans[-1][0], _pushed(fit, *spans[-1], noise, _release_window(dt), end=True))
+            spans[-1] = (spans[-1][0], _unforced(fit, *spans[-1], noise, _release_window(dt), end=True))
             last = spans[-1][1]
         if leaves:
             events.append(Event(last, "gone"))
@@ -496,13 +496,13 @@ def _side(dt: float) -> int:
     return int(np.clip(round(SIDE_S / dt), *SIDE_FRAMES))
 
 
-def _pushed(fit, a: int, b: int, noise: float, w: int, end: bool = False) -> int:
+def _unforced(fit, a: int, b: int, noise: float, w: int, end: bool = False) -> int:
     """Where the first piece [a, b) after a hold starts once a push is left out (end: where the last
-    piece before a rest ends once the impact that stopped it is left out): a hand that pushes a puck
+    piece, something after it, ends once the impact that stopped it is left out): a hand that pushes a puck
     or a cart starts it from rest over a few frames with a force of its own, and a block that hits
     the foot of its ramp stops within a frame or two; the search's slack for a long path's bends
     (stretch.MAIN_SLACK) grows the piece into those frames (a -2.7% on a generated puck, -0.6% on a
-    block). One trajectory over the piece may miss by at most PUSHED times what one misses without
+    block). One trajectory over the piece may miss by at most FORCED times what one misses without
     its first (last) w frames (w: a release window); where it misses by more, the piece starts
     (ends) at the first frame from which it does not (a release from rest, a swing's first turn,
     a stop by friction fit as well as what follows or comes before them)."""
@@ -515,7 +515,7 @@ def _pushed(fit, a: int, b: int, noise: float, w: int, end: bool = False) -> int
         with_, without = fit(lo, hi), _rms(fit(lo, hi - w) if end else fit(lo + w, hi))
         if with_ is None or without is None:
             break
-        if _rms(with_) <= PUSHED * max(without, noise):
+        if _rms(with_) <= FORCED * max(without, noise):
             return edge + step * k
     return edge
 
