@@ -38,6 +38,7 @@ CORE = 0.5
 LOCATE = 4  # the whole factor the change is shrunk by to find the object's region
 MAX_OBJECTS = 3  # the strongest paths a track keeps for states that name their object
 MIN_SIDE = 8  # frames given as an array narrower than this are not pictures to track
+GHOST_FLOOR = 0.25  # gray levels: the least spread _ghost compares with (a rebuilt scene read off whole levels)
 
 
 class TrackRecorder:
@@ -154,8 +155,9 @@ def measure(stack: np.ndarray) -> tuple[np.ndarray, float]:
 
 def measure_paths(stack: np.ndarray, objects: int = 1, per_frame: bool = False) -> tuple[np.ndarray, Any]:
     """(objects, T, 2) the paths of the `objects` strongest moving things in gray frames
-    (T, H, W) uint8 (see follow), the first the object's, NaN where a path has nothing; and the
-    first object's mean area in pixels (per_frame: its area in each frame, (T,), NaN where unseen)."""
+    (T, H, W) uint8 (see follow), the first the object's, NaN where a path has nothing, its places
+    measured again where it passes a faint ghost (_unghosted); and the first object's mean area in
+    pixels (per_frame: its area in each frame, (T,), NaN where unseen)."""
     sample, background, noise = static_scene(stack)
     found = {t: _candidates(stack[t], background, noise) for t in range(len(stack))}
     xy, area = _paths(found, len(stack), 1)
@@ -183,9 +185,81 @@ def measure_paths(stack: np.ndarray, objects: int = 1, per_frame: bool = False) 
                 if np.isnan(xy[t, 0]) or np.any((np.abs(mx - xy[t, 0]) < reach) & (np.abs(my - xy[t, 1]) < reach)):
                     found[t] = _candidates(stack[t], rebuilt, noise)
     paths, area = _paths(found, len(stack), objects)
+    paths[0] = _unghosted(stack, sample, paths[0], area, background, noise)
     if per_frame:
         return paths, area
     return paths, float(np.nanmean(area)) if np.isfinite(area).any() else 0.0
+
+
+def _median_far(stack: np.ndarray, frames: np.ndarray, xy: np.ndarray, radius: float,
+                background: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel's median over the frames in which the object lay farther than radius from it,
+    (H, W) uint8 (background's where it never did), and how many such frames it had. A median,
+    not a mean: a pendulum's string crosses most pixels near the pivot in some frames, and a mean
+    keeps a smear of it that the median of all frames had not. The frames where the object lay
+    near a pixel are set to 0 and 255 in turn there, which moves no median (to half a rank where
+    their number is odd); rows are taken a band at a time, to hold a few MiB."""
+    h, w = background.shape
+    clean, count = background.copy(), np.full((h, w), len(frames), np.int32)
+    r2 = radius * radius
+    xs = np.arange(w, dtype=np.float64)
+    band = max(1, (8 << 20) // max(1, len(frames) * w * 4))
+    for y0 in range(0, h, band):
+        ys = np.arange(y0, min(h, y0 + band), dtype=np.float64)
+        near = np.stack([(ys[:, None] - xy[t, 1]) ** 2 + (xs[None, :] - xy[t, 0]) ** 2 <= r2 for t in frames])
+        if not near.any():
+            continue
+        turn = (np.cumsum(near, axis=0, dtype=np.uint8) % 2).astype(bool)
+        values = np.where(near, np.where(turn, np.uint8(0), np.uint8(255)), stack[frames, y0:y0 + len(ys)])
+        clean[y0:y0 + len(ys)] = np.median(values, axis=0).round().astype(np.uint8)
+        count[y0:y0 + len(ys)] -= near.sum(axis=0, dtype=np.int32)
+    return clean, count
+
+
+def _ghost(diff: np.ndarray, size: float) -> np.ndarray:
+    """Where the static scene rebuilt without the object differs from the median one (diff, gray
+    levels): averaged over a patch half the object's size across, by more than NOISE_SIGMAS spreads
+    of that average over the frame. A ghost fainter than a pixel's own noise still weighs the
+    change-weighted centroid: a block resting a quarter of the clip at its start left 1-5 gray
+    levels where a pixel's 4 noise levels are 8, and its slide's first half read a 1.6% low."""
+    k = max(3, int(round(size / 2)) | 1)
+    mean = cv2.blur(diff.astype(np.float32), (k, k))
+    spread = 1.4826 * float(np.median(np.abs(mean)))
+    return np.abs(mean) > NOISE_SIGMAS * max(spread, GHOST_FLOOR)
+
+
+def _unghosted(stack: np.ndarray, sample: np.ndarray, path: np.ndarray, area: np.ndarray,
+               background: np.ndarray, noise: float) -> np.ndarray:
+    """The object's path (T, 2) measured again, against the static scene rebuilt from the frames
+    in which the object lay far from each pixel, in the frames where it passes a ghost fainter than
+    a pixel's noise (_ghost); the place of the region nearest the path's, within half the object's
+    size, is taken. Only the object's own places: which regions its path and the others go
+    through was chosen against the median scene (measure_paths), and stays so."""
+    seen = np.isfinite(path[sample, 0])
+    if not seen.any():
+        return path
+    size = math.sqrt(max(float(np.nanmean(area)), 1.0))
+    clean, count = _median_far(stack, sample[seen], path, 2 * size + 2, background)
+    rebuilt = np.where(count >= max(3, len(sample) // 10), clean, background)
+    ghost = _ghost(rebuilt.astype(np.float32) - background, size)
+    if not ghost.any():
+        return path
+    reach = int(math.ceil(4 * size + 4))
+    near = cv2.dilate(ghost.astype(np.uint8), np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)) > 0
+    h, w = near.shape
+    out = path.copy()
+    for t in np.flatnonzero(np.isfinite(path[:, 0])):
+        x, y = int(round(float(path[t, 0]))), int(round(float(path[t, 1])))
+        if not (0 <= x < w and 0 <= y < h and near[y, x]):
+            continue
+        regions = _candidates(stack[t], rebuilt, noise)
+        if not regions:
+            continue
+        dist = [math.hypot(c[0] - path[t, 0], c[1] - path[t, 1]) for c in regions]
+        j = int(np.argmin(dist))
+        if dist[j] <= 0.5 * size:
+            out[t] = regions[j][:2]
+    return out
 
 
 def _paths(found: dict[int, list[tuple[float, float, float, float]]], length: int,
