@@ -244,7 +244,7 @@ def _unghosted(stack: np.ndarray, sample: np.ndarray, path: np.ndarray, area: np
     ghost = _ghost(rebuilt.astype(np.float32) - background, size)
     if not ghost.any():
         return path
-    reach = int(math.ceil(4 * size + 4))
+    reach = int(math.ceil(size))  # a ghost farther than the object's size from its centroid is outside its region
     near = cv2.dilate(ghost.astype(np.uint8), np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)) > 0
     h, w = near.shape
     out = path.copy()
