@@ -234,7 +234,9 @@ def _unghosted(stack: np.ndarray, sample: np.ndarray, path: np.ndarray, area: np
     in which the object lay far from each pixel, in the frames where it passes a ghost fainter than
     a pixel's noise (_ghost); the place of the region nearest the path's, within half the object's
     size, is taken. Only the object's own places: which regions its path and the others go
-    through was chosen against the median scene (measure_paths), and stays so."""
+    through was chosen above (against the median scene, rebuilt by a mean where a ghost passes 4
+    noise levels) and stays so: rebuilt by this median for every region of every frame, the real
+    drop's path switched between moving things and the object tracker took something else."""
     seen = np.isfinite(path[sample, 0])
     if not seen.any():
         return path
