@@ -257,4 +257,3 @@ def test_a_large_object_is_searched_for_at_half_the_resolution_and_found_as_exac
     assert list(np.flatnonzero(found.hidden)) == list(range(24, 30))
     err = np.linalg.norm(found.xy[~found.hidden] - (np.stack([cx, cy], axis=1) - 0.5)[~found.hidden], axis=1)
     assert float(np.sqrt(np.mean(err ** 2))) < 0.2 and err.max() < 0.5
-
