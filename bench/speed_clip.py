@@ -6,16 +6,21 @@ as a process of its own after a warm-up read: the decode (Python, its imports an
 fitode.video.read_video with the command's defaults: stride auto, short side 64, gray), then the
 whole command (`python -m fitode CLIP ARGS --quiet`), its stages timed inside the process:
 
-- start-up: from the process's launch to the command's first step (Python, fitode's imports, the
-  flags);
+- start-up: from the process's launch to the command's first stage (Python, the imports the
+  command makes before it, the flags); the stages' functions are timed as their modules are
+  imported by the command itself, so no import is moved into the start-up;
 - read and measure: decoding the clip and resolving the plan (the observation read from the frames,
-  a finer re-read), with the imports they pull in (torch, OpenCV);
+  a finer re-read), with the imports they pull in (torch, where the frames become a tensor; OpenCV);
 - fit: the restarts (a measured path's direct fit, or the encoder's training) and the measurement's checks;
 - intervals: the bootstrap of every constant's interval;
 - assessment: the calibration where asked and the verdicts;
 - pictures: the plots (track.png, frames.png, latent.png; params.png and loss.png where an encoder
   was trained);
-- the rest: what none of these holds (printing, result.json, the tables).
+- the rest: what none of these holds (printing, result.json, the tables);
+
+and beside them, of which imports: the seconds the process spent importing (Python's -X importtime,
+each import counted once, where it happened), and the libraries that cost most of them. What the
+stages hold of these is theirs too (the pictures' matplotlib, the reading's torch).
 
 Each pair runs --reps times alternating, so a busy machine slows both alike; the load average is
 printed beside them (the machine is shared: trust the ratio of minima more than either time).
@@ -50,7 +55,9 @@ CLIP = next((p / "shared" / "realvideos" / "pendulum_bob_L062.mp4" for p in Path
 SHORT = "throw 240 fps"  # the generated clip's name in --clip
 # the stages, each the functions whose calls it sums (module, attribute); the first match of a name is patched
 STAGES = {
-    "read and measure": [("fitode.pipeline", "_read"), ("fitode.api", "plan"), ("fitode.api", "measure")],
+    # measure_clip holds the read, the frames made a tensor (torch's import) and the plan
+    "read and measure": [("fitode.pipeline", "measure_clip"), ("fitode.pipeline", "_read"), ("fitode.api", "plan"),
+                         ("fitode.api", "measure")],
     "fit": [("fitode.train.trainer", "fit_frames")],
     "intervals": [("fitode.api", "_intervals")],
     "assessment": [("fitode.api", "_calibrate"), ("fitode.train.assess", "assess")],
@@ -71,12 +78,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--reps", type=int, default=1, help="alternating repetitions (default 1)")
 
 
-def _run(cmd: list[str], env: dict | None = None) -> float:
+def _run(cmd: list[str], env: dict | None = None, log: bool = False):
+    """The command's wall seconds (and its standard error, with log)."""
     t0 = time.perf_counter()
     done = subprocess.run(cmd, capture_output=True, text=True, env=env)
     if done.returncode != 0:
-        raise FitodeError(f"{' '.join(cmd[:4])} ... failed: {(done.stderr or done.stdout).strip()[-300:]}")
-    return time.perf_counter() - t0
+        tail = "\n".join(line for line in (done.stderr or done.stdout).splitlines() if not line.startswith("import time:"))
+        raise FitodeError(f"{' '.join(cmd[:4])} ... failed: {tail.strip()[-300:]}")
+    wall = time.perf_counter() - t0
+    return (wall, done.stderr) if log else wall
+
+
+def imports(log: str, top: int = 3) -> dict:
+    """What -X importtime's lines in log say: the seconds spent importing in all (each outermost
+    import's cumulative time: a module imported inside a function at run time is one too), and the
+    `top` top-level packages that cost most, {name: seconds}, each the time its own modules took
+    to run (their self time: torch's, not what fitode's modules spent importing torch)."""
+    total, per = 0.0, {}
+    for line in log.splitlines():
+        if not line.startswith("import time:"):
+            continue
+        parts = line.split("|")
+        own, whole = (parts[0].split(":")[-1].strip(), parts[1].strip()) if len(parts) == 3 else ("", "")
+        if not (own.isdigit() and whole.isdigit()):
+            continue  # the header
+        name = parts[2].rstrip()
+        if not name.startswith("  "):  # an outermost import: what it holds is counted with it
+            total += int(whole) / 1e6
+        root = name.strip().split(".")[0]
+        per[root] = per.get(root, 0.0) + int(own) / 1e6
+    biggest = dict(sorted(per.items(), key=lambda kv: -kv[1])[:top])
+    return {"total": total, "biggest": biggest}
 
 
 def _decode(clip: str) -> float:
@@ -88,8 +120,10 @@ def _fit(clip: str, argv: list[str], out: Path) -> tuple[float, dict, dict]:
     """The whole command in a process of its own, its stages timed inside it (_driver)."""
     stages = out.with_suffix(".stages.json")
     env = {**os.environ, "SPEED_CLIP_STAGES": str(stages), "SPEED_CLIP_LAUNCH": repr(time.time())}
-    wall = _run([sys.executable, __file__, "--driver", clip, *argv, "--quiet", "--out", str(out)], env)
+    wall, log = _run([sys.executable, "-X", "importtime", __file__, "--driver", clip, *argv, "--quiet", "--out",
+                      str(out)], env, log=True)
     times = json.loads(stages.read_text())
+    times["imports"] = imports(log)
     res = json.loads((out / "result.json").read_text())
     return wall, times, {"values": {k: v["value"] for k, v in res.get("parameters", {}).items()},
                          "verdicts": {k: v.get("verdict") for k, v in res.get("parameters", {}).items()},
@@ -99,8 +133,6 @@ def _fit(clip: str, argv: list[str], out: Path) -> tuple[float, dict, dict]:
 def _driver(argv: list[str]) -> int:
     """`fitode ARGV` in this process with each stage's functions timed; writes the times
     (seconds, and start-up from the launch time the parent passed) to $SPEED_CLIP_STAGES."""
-    import importlib
-
     entered = time.time()
     spent = {name: 0.0 for name in STAGES}
     depth, first = [0], []
@@ -118,11 +150,16 @@ def _driver(argv: list[str]) -> int:
                 spent[stage] += time.perf_counter() - t0
                 depth[0] -= 1
         return wrapper
+    # each stage's functions patched as the command imports their module, not before: importing
+    # them here would put what they import (torch, the plots) into the start-up
+    targets: dict[str, list] = {}
     for stage, where in STAGES.items():
         for module, name in where:
-            mod = importlib.import_module(module)
-            if hasattr(mod, name):
-                setattr(mod, name, timed(stage, getattr(mod, name)))
+            targets.setdefault(module, []).append((stage, name))
+    hook = _PatchOnImport(targets, timed)
+    for module in [m for m in targets if m in sys.modules]:  # imported with the driver's own
+        hook.patch(sys.modules[module])
+    sys.meta_path.insert(0, hook)
     from fitode.cli import entry
     try:
         code = entry(argv)  # the command's own entry: its collector's settings are part of its time
@@ -133,6 +170,38 @@ def _driver(argv: list[str]) -> int:
         Path(os.environ["SPEED_CLIP_STAGES"]).write_text(json.dumps(
             {"start-up": (first[0] if first else done) - launch, **spent, "whole_in_process": done - entered}))
     return int(code or 0)
+
+
+class _PatchOnImport:
+    """A finder that lets the others find a module and, once the module has run, wraps the named
+    functions of it ({module: [(stage, name)]}) with timed(stage, fn)."""
+
+    def __init__(self, targets: dict, timed):
+        self.targets, self.timed = targets, timed
+
+    def find_spec(self, name, path=None, target=None):
+        if name not in self.targets:
+            return None
+        for finder in sys.meta_path:
+            if finder is self or not hasattr(finder, "find_spec"):
+                continue
+            spec = finder.find_spec(name, path, target)
+            if spec is not None:
+                break
+        else:
+            return None
+        run = spec.loader.exec_module
+
+        def exec_module(module):
+            run(module)
+            self.patch(module)
+        spec.loader.exec_module = exec_module
+        return spec
+
+    def patch(self, module) -> None:
+        for stage, attr in self.targets[module.__name__]:
+            if hasattr(module, attr):
+                setattr(module, attr, self.timed(stage, getattr(module, attr)))
 
 
 def _short_clip(folder: Path) -> Path:
@@ -169,7 +238,8 @@ def run(args: argparse.Namespace) -> int:
             times = stages[best]
             times["the rest"] = max(0.0, fits[best] - times["start-up"] - sum(times[s] for s in STAGES))
             rows.append({"clip": Path(name).name, "args": argv, "decode_s": decode, "fit_s": fits,
-                         "stages_s": {c: times[c] for c in COLUMNS}, "ratio": min(fits) / min(decode),
+                         "stages_s": {**{c: times[c] for c in COLUMNS}, "imports": times["imports"]},
+                         "ratio": min(fits) / min(decode),
                          "load": list(os.getloadavg()), "result": last})
     record = {"clips": rows, "machine": bc.machine_info()}
     return bc.report_and_write(record, args.out, "speed_clip", _print)
@@ -181,6 +251,9 @@ def _print(record) -> None:
         row = {"clip": r["clip"], "decode s": f"{min(r['decode_s']):.2f}", "command s": f"{min(r['fit_s']):.2f}",
                "ratio": f"{r['ratio']:.1f}x"}
         row.update({c: f"{r['stages_s'][c]:.2f}" for c in COLUMNS})
+        held = r["stages_s"].get("imports") or {}
+        row["of which imports"] = (f"{held['total']:.2f} (" + ", ".join(f"{k} {v:.2f}" for k, v in held["biggest"].items())
+                                   + ")") if held else "-"
         row["load (1/5/15 min)"] = " ".join(f"{x:.1f}" for x in r["load"])
         rows.append(row)
     if not rows:

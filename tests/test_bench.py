@@ -273,3 +273,42 @@ def test_a_clicked_ruler_is_off_by_about_a_pixel_and_reads_as_a_scale():
     ends = np.array([[*s.p1, *s.p2] for s in sticks]) - [100.0, 20.0, 300.0, 20.0]
     assert np.std(ends, axis=0) == pytest.approx([END_STD] * 4, rel=0.15)  # each end clicked, each axis
     assert all(s.distance == 0.5 and s.end_std == END_STD for s in sticks)  # the error the tool assumes
+
+
+def test_speed_clip_counts_each_import_once_and_by_its_own_package():
+    import speed_clip
+    log = "\n".join([
+        "import time: self [us] | cumulative | imported package",
+        "import time:        10 |        100 |   torch._C",  # nested: in torch's cumulative
+        "import time:        20 |        110 | torch",
+        "import time:        45 |         45 |   sympy",  # fitode.eqfile's import of sympy
+        "import time:         5 |         50 | fitode.eqfile",
+        "not an import line",
+    ])
+    got = speed_clip.imports(log, top=2)
+    assert math.isclose(got["total"], 160e-6)
+    assert list(got["biggest"]) == ["sympy", "torch"]
+    assert math.isclose(got["biggest"]["torch"], 30e-6) and math.isclose(got["biggest"]["sympy"], 45e-6)
+
+
+def test_speed_clip_times_a_stage_from_the_import_that_loads_it(tmp_path, monkeypatch):
+    # the driver patches a stage's function when the command imports its module, so that
+    # nothing the module imports moves into the start-up
+    import speed_clip
+    (tmp_path / "late_stage_mod.py").write_text("def work(x):\n    return 2 * x\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    calls = []
+
+    def timed(stage, fn):
+        def wrapper(*a):
+            calls.append(stage)
+            return fn(*a)
+        return wrapper
+    hook = speed_clip._PatchOnImport({"late_stage_mod": [("fit", "work")]}, timed)
+    monkeypatch.setattr(sys, "meta_path", [hook, *sys.meta_path])
+    assert "late_stage_mod" not in sys.modules
+    import late_stage_mod
+    try:
+        assert late_stage_mod.work(3) == 6 and calls == ["fit"]
+    finally:
+        sys.modules.pop("late_stage_mod", None)
