@@ -50,6 +50,7 @@ PEAKS = 1         # the correlation's peaks refined where the best is not a good
 MARGIN = 2        # pixels of background kept around the object's mask in the template
 OFFSET = 0.25     # the largest change of the object's brightness (beyond a gain) a match allows, in its contrasts
 BACKGROUND_FRAMES = 48  # frames spread over the clip whose median is the static scene (static_scene)
+TRAVEL_TURN = 1.0  # pixels a path comes back by, at least, for a turn of it to count (travelled)
 WHOLE = 1.2      # the object followed again with its whole cut where that has this many times the seed cut's area
 OWN_FRAMES = 16  # frames whose own change places the object's centre (_centre)
 OFF_CENTRE = 1.0  # ... or where the template's reference point lies this many pixels from that centre
@@ -232,7 +233,7 @@ def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
         seen = np.isfinite(found.xy[:, 0])
         # an object that travels less than its own size is not the one that moves (a hand that
         # has let the ball go)
-        if seen.sum() < 3 or float(np.ptp(found.xy[seen], axis=0).max()) < max(2.0, math.sqrt(found.area)):
+        if seen.sum() < 3 or travelled(found.xy[seen]) < max(2.0, math.sqrt(found.area)):
             continue
         # in view longest (to a tenth of the clip: legs walk out of the view, a can on its spring
         # does not), then keeping its look best
@@ -240,6 +241,37 @@ def follow_best(stack: np.ndarray, paths: np.ndarray) -> Followed | None:
         if rank is None or key > rank:
             best, rank = found, key
     return best
+
+
+def travelled(xy: np.ndarray) -> float:
+    """How far a path (T, 2) travels: along each image axis, the sum of its swings from one turning
+    point to the next, a turn counted where the path comes back by more than TRAVEL_TURN pixels or
+    4 times its frame-to-frame scatter (so that the noise of a still thing's place adds nothing);
+    the larger axis's. A swing narrower than the object that swings (a large bob on a small swing,
+    its string in the template: 43 pixels of range for 43 of size) travels its range on every
+    swing; a hand that has let go moves once, if at all."""
+    p = xy[np.isfinite(xy[:, 0]) & np.isfinite(xy[:, 1])]
+    if len(p) < 2:
+        return 0.0
+    noise = scatter(p)
+    turn = max(TRAVEL_TURN, 4.0 * noise) if math.isfinite(noise) else TRAVEL_TURN
+    return max(_swings(p[:, 0], turn), _swings(p[:, 1], turn))
+
+
+def _swings(v: np.ndarray, turn: float) -> float:
+    """The summed lengths of a series' swings between turning points, a turn taken where it comes
+    back from its extreme by more than `turn`, and its last swing to its last extreme."""
+    total, start, extreme, up = 0.0, float(v[0]), float(v[0]), None
+    for x in map(float, v[1:]):
+        if up is None:
+            if abs(x - start) > turn:
+                up, extreme = x > start, x
+        elif (x > extreme) == up and x != extreme:
+            extreme = x
+        elif abs(x - extreme) > turn:
+            total += abs(extreme - start)
+            start, extreme, up = extreme, x, not up
+    return total + (abs(extreme - start) if up is not None else 0.0)
 
 
 def static_scene(stack: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
