@@ -184,3 +184,19 @@ def test_a_constant_the_windows_drove_onto_its_bound_starts_the_whole_fit_from_t
     upper = {"e": ParamSpec(init=0.5, min=0.0, max=1.0)}
     assert off_bounds(TrajectoryFit({"e": 1.0 - 1e-12}, {}, 0.1, np.zeros((5, 1)), True), {"e": 0.7},
                       upper).values == {"e": 0.7}
+
+
+def test_a_whole_path_fit_stopped_at_its_bound_is_fitted_once_more(monkeypatch):
+    # the second fit is kept only where it settles and misfits no more than the first
+    from fitode.train import direct
+    from fitode.train.trajectory import TrajectoryFit
+
+    def fit(misfit, converged, value):
+        return TrajectoryFit({"k": value}, {"k": 0.1}, misfit, np.zeros((5, 1)), converged)
+    first = fit(1.0, False, 2.0)
+    for second, kept in ((fit(0.9, True, 2.5), 2.5), (fit(1.1, True, 2.5), 2.0), (fit(0.9, False, 2.5), 2.0),
+                         (None, 2.0)):
+        seen = []
+        monkeypatch.setattr(direct, "full_fit", lambda *a, lead=None, **k: seen.append(a[4]) or second)
+        got = direct._continued(None, {}, np.zeros((5, 1)), 0.1, first, {"gauge": None})
+        assert seen == [first] and got.values["k"] == kept
