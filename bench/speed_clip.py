@@ -3,8 +3,9 @@
 Issue 33's speed lines: the bob clip (`fitode pendulum_bob_L062.mp4 --system pendulum`) within 2x
 its decode, and a 60-frame 240 fps clip's whole process under 4 s. For each clip, side by side, each
 as a process of its own after a warm-up read: the decode (Python, its imports and
-fitode.video.read_video with the command's defaults: stride auto, short side 64, gray), then the
-whole command (`python -m fitode CLIP ARGS --quiet`), its stages timed inside the process:
+fitode.video.read_video with the command's defaults: stride auto, short side 64, gray, and no
+tracking: following the object is measuring, not reading), then the whole command (`python -m
+fitode CLIP ARGS --quiet`), its stages timed inside the process:
 
 - start-up: from the process's launch to the command's first stage (Python, the imports the
   command makes before it, the flags); the stages' functions are timed as their modules are
@@ -18,9 +19,11 @@ whole command (`python -m fitode CLIP ARGS --quiet`), its stages timed inside th
   was trained);
 - the rest: what none of these holds (printing, result.json, the tables);
 
-and beside them, of which imports: the seconds the process spent importing (Python's -X importtime,
-each import counted once, where it happened), and the libraries that cost most of them. What the
-stages hold of these is theirs too (the pictures' matplotlib, the reading's torch).
+and beside them, of which tracking: the object's track from the frames (the change detector and
+the object tracker, fitode.video.track.TrackRecorder.finish), which the read runs; of which
+imports: the seconds the process spent importing (Python's -X importtime, each import counted
+once, where it happened), and the libraries that cost most of them. What the stages hold of these
+is theirs too (the pictures' matplotlib, the reading's torch).
 
 Each pair runs --reps times alternating, so a busy machine slows both alike; the load average is
 printed beside them (the machine is shared: trust the ratio of minima more than either time).
@@ -66,6 +69,8 @@ STAGES = {
     "pictures": [("fitode.pipeline", "_try_plot"), ("fitode.output", "_try_plot")],
 }
 COLUMNS = ["start-up", *STAGES, "the rest"]
+# parts of a stage shown beside it, timed wherever they are called (the tracking runs inside the read)
+PARTS = {"of which tracking": [("fitode.video.track", "TrackRecorder.finish")]}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -112,8 +117,11 @@ def imports(log: str, top: int = 3) -> dict:
 
 
 def _decode(clip: str) -> float:
-    """The decode as a process of its own (Python, imports and the read, as the command pays them)."""
-    return _run([sys.executable, "-c", f"from fitode.video import read_video; read_video({clip!r}, stride='auto')"])
+    """The decode as a process of its own: Python, its imports and the frames read as the command
+    reads them (stride, crop, downscale), without the object's tracking, which is the command's
+    measuring (its own column), not reading the clip."""
+    return _run([sys.executable, "-c",
+                 f"from fitode.video import read_video; read_video({clip!r}, stride='auto', track=False)"])
 
 
 def _fit(clip: str, argv: list[str], out: Path) -> tuple[float, dict, dict]:
@@ -134,7 +142,7 @@ def _driver(argv: list[str]) -> int:
     """`fitode ARGV` in this process with each stage's functions timed; writes the times
     (seconds, and start-up from the launch time the parent passed) to $SPEED_CLIP_STAGES."""
     entered = time.time()
-    spent = {name: 0.0 for name in STAGES}
+    spent = {name: 0.0 for name in [*STAGES, *PARTS]}
     depth, first = [0], []
 
     def timed(stage, fn):
@@ -150,13 +158,22 @@ def _driver(argv: list[str]) -> int:
                 spent[stage] += time.perf_counter() - t0
                 depth[0] -= 1
         return wrapper
+
+    def part(name, fn):
+        def wrapper(*args, **kw):
+            t0 = time.perf_counter()
+            try:
+                return fn(*args, **kw)
+            finally:
+                spent[name] += time.perf_counter() - t0
+        return wrapper
     # each stage's functions patched as the command imports their module, not before: importing
     # them here would put what they import (torch, the plots) into the start-up
     targets: dict[str, list] = {}
-    for stage, where in STAGES.items():
+    for stage, where in [*STAGES.items(), *PARTS.items()]:
         for module, name in where:
             targets.setdefault(module, []).append((stage, name))
-    hook = _PatchOnImport(targets, timed)
+    hook = _PatchOnImport(targets, lambda stage, fn: (part if stage in PARTS else timed)(stage, fn))
     for module in [m for m in targets if m in sys.modules]:  # imported with the driver's own
         hook.patch(sys.modules[module])
     sys.meta_path.insert(0, hook)
@@ -200,8 +217,12 @@ class _PatchOnImport:
 
     def patch(self, module) -> None:
         for stage, attr in self.targets[module.__name__]:
-            if hasattr(module, attr):
-                setattr(module, attr, self.timed(stage, getattr(module, attr)))
+            *owner_path, name = attr.split(".")  # "Class.method": the method on its class
+            owner = module
+            for step in owner_path:
+                owner = getattr(owner, step, None)
+            if owner is not None and hasattr(owner, name):
+                setattr(owner, name, self.timed(stage, getattr(owner, name)))
 
 
 def _short_clip(folder: Path) -> Path:
@@ -238,7 +259,7 @@ def run(args: argparse.Namespace) -> int:
             times = stages[best]
             times["the rest"] = max(0.0, fits[best] - times["start-up"] - sum(times[s] for s in STAGES))
             rows.append({"clip": Path(name).name, "args": argv, "decode_s": decode, "fit_s": fits,
-                         "stages_s": {**{c: times[c] for c in COLUMNS}, "imports": times["imports"]},
+                         "stages_s": {**{c: times[c] for c in [*COLUMNS, *PARTS]}, "imports": times["imports"]},
                          "ratio": min(fits) / min(decode),
                          "load": list(os.getloadavg()), "result": last})
     record = {"clips": rows, "machine": bc.machine_info()}
@@ -251,6 +272,7 @@ def _print(record) -> None:
         row = {"clip": r["clip"], "decode s": f"{min(r['decode_s']):.2f}", "command s": f"{min(r['fit_s']):.2f}",
                "ratio": f"{r['ratio']:.1f}x"}
         row.update({c: f"{r['stages_s'][c]:.2f}" for c in COLUMNS})
+        row.update({c: f"{r['stages_s'][c]:.2f}" if c in r["stages_s"] else "-" for c in PARTS})
         held = r["stages_s"].get("imports") or {}
         row["of which imports"] = (f"{held['total']:.2f} (" + ", ".join(f"{k} {v:.2f}" for k, v in held["biggest"].items())
                                    + ")") if held else "-"

@@ -312,3 +312,27 @@ def test_speed_clip_times_a_stage_from_the_import_that_loads_it(tmp_path, monkey
         assert late_stage_mod.work(3) == 6 and calls == ["fit"]
     finally:
         sys.modules.pop("late_stage_mod", None)
+
+
+def test_speed_clip_times_a_method_named_by_its_class(tmp_path, monkeypatch):
+    # the tracking is timed at TrackRecorder.finish, a method: the patch finds it on its class
+    import speed_clip
+    (tmp_path / "late_class_mod.py").write_text(
+        "class Recorder:\n    def finish(self, x):\n        return x + 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    calls = []
+
+    def timed(stage, fn):
+        def wrapper(*a):
+            calls.append(stage)
+            return fn(*a)
+        return wrapper
+    hook = speed_clip._PatchOnImport({"late_class_mod": [("of which tracking", "Recorder.finish"),
+                                                         ("fit", "Missing.method")]}, timed)
+    monkeypatch.setattr(sys, "meta_path", [hook, *sys.meta_path])
+    import late_class_mod
+    try:
+        assert late_class_mod.Recorder().finish(1) == 2 and calls == ["of which tracking"]
+    finally:
+        sys.modules.pop("late_class_mod", None)
+    assert "of which tracking" in speed_clip.PARTS
