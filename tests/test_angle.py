@@ -340,15 +340,15 @@ def _faint_bob_swing(folder, L: float, seed: int, **kw):
     return result
 
 
-def test_a_light_bob_on_a_light_wall_is_read_on_its_string_where_the_change_loses_it(tmp_path):
+def test_a_light_bob_on_a_light_wall_is_read_by_its_string_where_the_change_loses_it(tmp_path):
     # the coverage bench's clip (seed 10, clip 3): the change is the string's in 73% of the frames;
-    # one circle through both bowed 1.9x its scatter, the auto choice fell to the free encoder
+    # one circle through both bowed 1.9x its scatter, the auto choice fell to the free encoder; then
+    # read on the string's points nearer the pivot, L -0.30% +- 0.22%, not trusted; now the string's
+    # own direction (fitode.video.rod): -0.11% +- 0.17%, the truth inside its interval
     result = _faint_bob_swing(tmp_path, 1.2925247, 10002, theta0_deg=53.83, zeta=0.0947, duration=3.435, noise=1.364)
-    assert "nearer the pivot along the swing's direction" in result.meta["subspace"]
-    assert result.parameters["L"].value == pytest.approx(1.2925247, rel=0.005)
-    # the string's direction leans off the bob's: not TRUSTED (L -0.30% +- 0.22% here), and said why
-    assert result.verdicts["L"]["verdict"] != "trusted"
-    assert "read on the string" in result.verdicts["L"]["reason"]
+    assert "the direction of a thin line" in result.meta["subspace"]
+    low, high = result.parameters["L"].interval
+    assert result.parameters["L"].value == pytest.approx(1.2925247, rel=0.005) and low <= 1.2925247 <= high
 
 
 def test_a_swing_read_on_its_string_in_some_frames_is_not_taken_for_a_bob_entering_the_view(tmp_path):

@@ -15,7 +15,10 @@ often more contrasted than its bob, and pulls the centroid towards the pivot by 
 against the shrunk blocks' own spread (a codec's noise is correlated over its blocks; a small
 object is looked for again at half the shrink), and measured at full resolution inside it.
 Where the strongest change is a band of water between a water line and its place in the static
-scene, the track is the line itself (fitode.video.waterline), not the band's centroid.
+scene, the track is the line itself (fitode.video.waterline), not the band's centroid; where the
+detector's path switches between things and the object tracker follows none, and the change is a
+thin line turning about a point (a small bob on a long string), the track is that line's far end
+read from its direction (fitode.video.rod).
 
 The frames are kept at the source's resolution unless the clip would take more than TRACK_BYTES
 so; then they are shrunk by the smallest whole factor that fits, and the track says so.
@@ -29,7 +32,8 @@ import cv2
 import numpy as np
 
 from fitode.train.observe.track import Track
-from fitode.video.follow import Followed, choose, static_scene
+from fitode.video.follow import SWITCHES, Followed, choose, static_scene, switches
+from fitode.video.rod import read_rod
 from fitode.video.waterline import read_line
 
 TRACK_BYTES = 384 * 2 ** 20
@@ -132,9 +136,16 @@ def place(stack: np.ndarray, paths: np.ndarray, areas: np.ndarray,
     object tracker's result where the caller has it."""
     xy, how, found = choose(stack, paths, areas, found)
     if found is None:
-        line = read_line(stack, paths[0], *static_scene(stack))
+        scene = static_scene(stack)
+        line = read_line(stack, paths[0], *scene)
         if line is not None:
             return line[0], line[1], None, True
+        if switches(paths[0], areas) >= SWITCHES:
+            # neither follows one object: a thin string that changes the frames more than the small
+            # bob it holds (the detector's path goes between them) is read by its direction
+            rod = read_rod(stack, *scene[1:])
+            if rod is not None:
+                return rod[0], f"{rod[1]}, not {how}", None, False
     return xy, how, found, False
 
 

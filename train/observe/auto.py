@@ -39,6 +39,7 @@ THIN = 0.05
 # centre far away (the real drop: 35567 pixels, 0.048 rad)
 SPAN = 0.1
 MIN_LEVEL_TRAVEL = 1.0  # pixels a water line must travel to be read as a level
+EXACT_ARC = 0.01  # pixels: a path this close to its arc was read as an angle about a pivot, not as a place
 
 
 def named_model(name: str, light: str = "auto") -> ObservationModel:
@@ -126,8 +127,11 @@ def _resolved(spec, system, frames, light, encoder, source, track) -> Observatio
         c = seen.arc()
         model.reason = (f"angle (auto: the change swings back and forth (rank correlation {seen.one_way:.2f} with "
                         f"time) along an arc about a centre {c.radius:.0f} pixels away that bows {c.sagitta:.1f} "
-                        f"pixels, {c.significance:.0f}x its uncertainty (scatter {c.scatter:.1f} pixels over "
-                        f"{c.points} frames): the angle about that centre is the state in radians)")
+                        f"pixels, " + (f"{c.significance:.0f}x its uncertainty (scatter {c.scatter:.1f} pixels over "
+                                       f"{c.points} frames)" if c.scatter >= EXACT_ARC else
+                                       # a string's direction read about its pivot (fitode.video.rod) lies on one circle
+                                       f"its {c.points} points on it within {EXACT_ARC} pixels") +
+                        ": the angle about that centre is the state in radians)")
         return model
     if seen is not None and seen.travels and all(axis_of(state) for state in system.states):
         model = PositionObservation()
