@@ -291,6 +291,16 @@ def test_speed_clip_counts_each_import_once_and_by_its_own_package():
     assert math.isclose(got["biggest"]["torch"], 30e-6) and math.isclose(got["biggest"]["sympy"], 45e-6)
 
 
+def _noting(calls: list):
+    """A stand-in for the driver's timer: each call of a patched function notes its stage."""
+    def timed(stage, fn):
+        def wrapper(*a):
+            calls.append(stage)
+            return fn(*a)
+        return wrapper
+    return timed
+
+
 def test_speed_clip_times_a_stage_from_the_import_that_loads_it(tmp_path, monkeypatch):
     # the driver patches a stage's function when the command imports its module, so that
     # nothing the module imports moves into the start-up
@@ -298,12 +308,7 @@ def test_speed_clip_times_a_stage_from_the_import_that_loads_it(tmp_path, monkey
     (tmp_path / "late_stage_mod.py").write_text("def work(x):\n    return 2 * x\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     calls = []
-
-    def timed(stage, fn):
-        def wrapper(*a):
-            calls.append(stage)
-            return fn(*a)
-        return wrapper
+    timed = _noting(calls)
     hook = speed_clip._PatchOnImport({"late_stage_mod": [("fit", "work")]}, timed)
     monkeypatch.setattr(sys, "meta_path", [hook, *sys.meta_path])
     assert "late_stage_mod" not in sys.modules
@@ -321,12 +326,7 @@ def test_speed_clip_times_a_method_named_by_its_class(tmp_path, monkeypatch):
         "class Recorder:\n    def finish(self, x):\n        return x + 1\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     calls = []
-
-    def timed(stage, fn):
-        def wrapper(*a):
-            calls.append(stage)
-            return fn(*a)
-        return wrapper
+    timed = _noting(calls)
     hook = speed_clip._PatchOnImport({"late_class_mod": [("of which tracking", "Recorder.finish"),
                                                          ("fit", "Missing.method")]}, timed)
     monkeypatch.setattr(sys, "meta_path", [hook, *sys.meta_path])

@@ -356,6 +356,25 @@ def test_a_held_swing_is_cut_at_its_release_with_the_angles_zero_refined(tmp_pat
     assert result.verdicts["L"]["verdict"] == "trusted"
 
 
+@pytest.mark.slow
+def test_a_held_swing_of_56_degrees_is_one_trajectory_from_its_release_to_the_end(tmp_path):
+    """The coverage bench's seed-1 clip 1512: the angle's zero read 0.68 degrees off (the change's
+    centroid, the pivot's fit), and the search held it as read: no two swings were one trajectory,
+    the stretch was 3.05-4.18 s, L -3.2% AMBIGUOUS. The zero one trajectory of the moving frames
+    finds is held instead."""
+    import fitode
+    from fitode import synth
+
+    v = synth.scene("held_pendulum", 1.2053989969113441, theta0_deg=55.85489430189623, hold=1.76113507141898,
+                    duration=5.204732838794434, size=(135, 240), noise=0.6175013830604652, seed=1512)
+    result = fitode.fit(str(synth.write_video(v, tmp_path / "held.mp4")), system="pendulum")
+    stretch = result.meta["stretch"]
+    assert stretch["start_s"] == pytest.approx(v.meta["physical"]["hold_s"], abs=0.1)
+    assert stretch["end_s"] >= 5.1  # to the clip's end: one trajectory from the release on
+    assert result.parameters["L"].value == pytest.approx(1.2053989969113441, rel=0.005)
+    assert result.verdicts["L"]["verdict"] == "trusted"
+
+
 def test_a_hold_that_wanders_by_a_hundredth_of_a_pixel_is_held_still():
     # a throw held 80 frames at 240 fps, read to 0.006 px from frame to frame but wandering by
     # 0.03 px in a codec's slow noise: more than REST_SIGMAS of its noise, yet no hand moved it

@@ -37,7 +37,7 @@ from .direct import fit_path, fitted_path, full_fit, off_bounds, orientation, sc
 from .steps import settle_substeps
 from .joint import disagreement, fit_pieces, other_motions
 from .pieces import Pieces, find_pieces
-from .stretch import MIN_SEED, Stretch, find_stretch
+from .stretch import MIN_SEED, Stretch, at_rest, find_stretch, noise_level
 from .threads import torch_threads as _threads  # the fit's threads (config.threads)
 from .trajectory import SEGMENT, fit_trajectory, long_options
 from .findings import Finding
@@ -444,13 +444,17 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
         return (0, n), _stretch_record((0, n), plan, "the whole clip", plan.observation.no_stretch), None
     system, params, config = plan.system, plan.params, plan.config
     warm = dict(restart_inits(system, params, 1, config.seed, plan.init)[0])
+    x = latent[:n]
     if plan.observation.physical_units:
         # a zero the fit refines (the angle's, observe.angle) is one for the whole clip: free in each
         # stretch the search tries, a hold is a swing at rest about a shifted zero (a held pendulum's
-        # 1.8 s at 43 degrees joined its swing as "one trajectory", and the fit of both failed)
+        # 1.8 s at 43 degrees joined its swing as "one trajectory", and the fit of both failed); held
+        # as read, a zero read 0.68 degrees off (a swing of 56 degrees) left no two swings one trajectory
+        with _threads(config.threads):
+            x = _zeroed(x, plan, gauges, warm)
         gauges = {s: replace(g, offset_learned=False) for s, g in gauges.items()}
     with _threads(config.threads):
-        first = screen(system, params, latent[:n], plan.dt, warm, gauge=gauges,
+        first = screen(system, params, x, plan.dt, warm, gauge=gauges,
                        integrator=config.integrator, substeps=config.substeps)
     if first is not None:
         first = off_bounds(first, warm, params)
@@ -459,10 +463,10 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
     def fit(a: int, b: int):
         # few iterations from the windows' constants, a learned scale held at theirs: the search
         # asks whether frames fit, many times, not for the last digit
-        got = (full_fit(system, params, latent[a:b], plan.dt, first, gauge=gauges, iterations=STRETCH_ITERATIONS,
+        got = (full_fit(system, params, x[a:b], plan.dt, first, gauge=gauges, iterations=STRETCH_ITERATIONS,
                         integrator=config.integrator, substeps=config.substeps, **long_options(b - a))
                if first is not None else
-               fit_trajectory(system, params, latent[a:b], plan.dt, warm, gauge=gauges, iterations=STRETCH_ITERATIONS,
+               fit_trajectory(system, params, x[a:b], plan.dt, warm, gauge=gauges, iterations=STRETCH_ITERATIONS,
                               integrator=config.integrator, substeps=config.substeps, **long_options(b - a)))
         # every fit starts from the same place: a short seed's constants (a decay's level, barely
         # determined over a few frames) sent the next fit of the whole clip into a far basin
@@ -470,18 +474,18 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
     pieces = None
     with _threads(config.threads):
         if config.pieces == "one":
-            found = find_stretch(latent[:n], plan.dt, fit)
+            found = find_stretch(x, plan.dt, fit)
         else:
             unread = np.zeros(n, dtype=bool)
             unread[[i for i in mended if i < n]] = True
             track = getattr(plan.observation, "track", None)
             unseen = np.isnan(track.xy[:n, 0]) if track is not None and len(track) >= n else None
-            pieces = find_pieces(latent[:n], plan.dt, fit, unread=unread, unseen=unseen,
+            pieces = find_pieces(x, plan.dt, fit, unread=unread, unseen=unseen,
                                  enters=bool(getattr(track, "enters", False)),
                                  leaves=bool(getattr(track, "leaves", False)) and len(track) <= n)
             if len(pieces.spans) > 1 and plan.observation.measured:
                 pieces = _same_motion(latent[:n], pieces, plan, warm)
-            found = _longest(latent[:n], pieces, plan.dt) if pieces.spans else find_stretch(latent[:n], plan.dt, fit)
+            found = _longest(latent[:n], pieces, plan.dt) if pieces.spans else find_stretch(x, plan.dt, fit)
             if not pieces.spans:
                 pieces = None
     record = found.to_dict(plan.dt)
@@ -489,6 +493,38 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
     if found.start == 0 and found.end == n:
         record["reason"] = "one trajectory of the equation explains the whole clip"
     return (found.start, found.end), record, pieces
+
+
+def _zeroed(x: np.ndarray, plan: FitPlan, gauges, start: Mapping[str, float]) -> np.ndarray:
+    """x (T, k) with each state whose zero the fit refines (gauges' offset_learned; its scale as
+    read) shifted to the zero one trajectory of the frames that move finds (a screen, then a whole
+    fit from it; stretch.at_rest: a hold or a rest at either end of the clip is left out, so it
+    cannot pull the zero to its own place): the path the stretch search asks about, with that zero
+    held. x as it is where the fits fail, or put the zero beyond half the moving path's range."""
+    states = plan.system.states
+    columns = [i for i, s in enumerate(states) if gauges.get(s) is not None and gauges[s].offset_learned
+               and not gauges[s].scale_learned]
+    if not columns:
+        return x
+    path = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
+    moving = np.flatnonzero(~at_rest(path, plan.dt, noise_level(path)))
+    if len(moving) < 3 * MIN_SEED:
+        return x
+    lo, hi = int(moving[0]), int(moving[-1]) + 1
+    options = dict(integrator=plan.config.integrator, substeps=plan.config.substeps)
+    lead = screen(plan.system, plan.params, path[lo:hi], plan.dt, start, gauge=gauges, **options)
+    if lead is not None:
+        # the windows' zero is rough (a swing of 56 degrees: 1.5 degrees for 0.68): one trajectory's
+        lead = full_fit(plan.system, plan.params, path[lo:hi], plan.dt, lead, gauge=gauges, **options,
+                        **long_options(hi - lo)) or lead
+    if lead is None or not lead.gauge:
+        return x
+    out = path.copy()
+    for i in columns:
+        b = float((lead.gauge.get(states[i]) or {}).get("offset", math.nan))
+        if math.isfinite(b) and abs(b) <= 0.5 * float(np.ptp(path[lo:hi, i])):
+            out[:, i] += b
+    return out.reshape(np.shape(x))
 
 
 def _same_motion(x: np.ndarray, pieces: Pieces, plan: FitPlan, start: Mapping[str, float]) -> Pieces:
