@@ -47,6 +47,17 @@ def test_a_string_is_read_by_its_angle_about_its_pivot():
     assert np.hypot(*(xy - pivot).T) == pytest.approx(130.0, abs=4.0)
 
 
+def test_a_light_string_on_a_dark_wall_is_read_alike():
+    # the line's sense is the one most changed pixels take: a white thread in front of a dark board
+    frames, theta = _swing(shadow=False, seed=3)
+    frames = 255 - frames
+    _, background, noise = static_scene(frames)
+    xy, how = read_rod(frames, background, noise)
+    pivot = np.array([float(v) for v in how.split("about (")[1].split(")")[0].split(",")])
+    angle = np.arctan2(xy[:, 0] - pivot[0], xy[:, 1] - pivot[1])
+    assert np.polyfit(theta, angle, 1)[0] == pytest.approx(1.0, abs=0.005)
+
+
 def test_a_ball_is_no_string():
     # a round ball moving across the wall makes no thin line: the reader keeps what it had
     rng = np.random.default_rng(1)
