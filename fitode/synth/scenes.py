@@ -840,7 +840,8 @@ def _held_pendulum(L, rng, duration, dt, h, w, p) -> _Scene:
 
 def _bumper_cart(a, rng, duration, dt, h, w, p) -> _Scene:
     """A cart on a gentle incline held still, let go, rolling down into the bumper at the foot of
-    the track and climbing again `bounces` times (restitution e): x'' = -a up the track."""
+    the track and climbing again `bounces` times (restitution e): s'' = -a, s the distance up the
+    track (x would be the horizontal, a cos of the incline)."""
     if not 0.05 <= a <= 5.0:
         raise FitodeError(f"the cart's acceleration a must be between 0.05 and 5 m/s^2, got {a}")
     e = float(p.get("restitution", rng.uniform(0.75, 0.9)))
@@ -883,7 +884,7 @@ def _bumper_cart(a, rng, duration, dt, h, w, p) -> _Scene:
             c.paint(R.circle(wx, wy, 2.5), 0.05, (wx - 4, wy - 4, wx + 4, wy + 4))
 
     first = int(np.ceil(rest_before / dt))
-    return _Scene(background=cv.image, draw=draw, latent=x[:, None], latent_names=("x",),
+    return _Scene(background=cv.image, draw=draw, latent=x[:, None], latent_names=("s",),
                   truth={"a": float(a)},
                   physical={"a": float(a), "a_px": float(a * ppm), "a_across_px": float(a * ppm * np.cos(shown)),
                             "shown_deg": float(np.rad2deg(shown)), "x0": x0, "rest_before_s": rest_before,
@@ -891,7 +892,7 @@ def _bumper_cart(a, rng, duration, dt, h, w, p) -> _Scene:
                             "release_frame": first, "bounce_s": [rest_before + tb for tb in times[:-1]],
                             "alpha_deg": float(np.rad2deg(alpha)), "pixels_per_metre": float(ppm),
                             "ruler": _scale_truth(ma, mb, gap)},
-                  state=np.stack([x, v], axis=1), state_names=("x", "x'"))
+                  state=np.stack([x, v], axis=1), state_names=("s", "s'"))
 
 
 def _bouncing_ball(g, rng, duration, dt, h, w, p) -> _Scene:
@@ -938,7 +939,7 @@ def _bouncing_ball(g, rng, duration, dt, h, w, p) -> _Scene:
 
 def _sliding_puck(a, rng, duration, dt, h, w, p) -> _Scene:
     """A dark puck on a table seen from above: at rest, pushed by a hand (a smooth push of push_s
-    seconds), sliding free until friction stops it (x'' = -a while it moves), then at rest: the
+    seconds), sliding free until friction stops it (s'' = -a while it moves, s along its slide), then at rest: the
     slide ends where its velocity reaches zero, not at a wall. dot=1: a white sticker in its middle."""
     if not 0.1 <= a <= 6.0:
         raise FitodeError(f"the puck's deceleration a must be between 0.1 and 6 m/s^2, got {a}")
@@ -994,14 +995,14 @@ def _sliding_puck(a, rng, duration, dt, h, w, p) -> _Scene:
             c.paint(R.hand(hx, hy, size, float(tilt)), skin, (hx - 2.5 * size, hy - 2.5 * size, hx + 2.5 * size,
                                                                hy + 2.5 * size))
 
-    return _Scene(background=cv.image, draw=draw, latent=x[:, None], latent_names=("x",),
+    return _Scene(background=cv.image, draw=draw, latent=x[:, None], latent_names=("s",),
                   truth={"a": float(a)},
                   physical={"a": float(a), "a_px": float(a * ppm), "v0": v0, "push_s": push, "slide": slide,
                             "rest_before_s": rest_before, "rest_after_s": rest_after,
                             "release_frame": int(np.ceil((rest_before + push) / dt)),
                             "stop_s": rest_before + push + glide, "tilt_deg": float(np.rad2deg(tilt)),
                             "pixels_per_metre": float(ppm), "ruler": _scale_truth(ma, mb, gap)},
-                  state=np.stack([x, v], axis=1), state_names=("x", "x'"),
+                  state=np.stack([x, v], axis=1), state_names=("s", "s'"),
                   pixels=np.stack([x0[0] + d[0] * x * ppm - 0.5, x0[1] + d[1] * x * ppm - 0.5], axis=1))
 
 
@@ -1052,13 +1053,13 @@ SCENES: dict[str, SceneInfo] = {i.name: i for i in (
               ("zeta", "theta0_deg", "hold", "tremor_deg"), PENDULUM_EQUATION, "pendulum", _held_pendulum),
     SceneInfo("bumper_cart", "a", (0.3, 0.6, 1.2), "m/s^2",
               "a cart let go on an incline, bouncing off the bumper at its foot", None,
-              ("restitution", "bounces", "x0", "rest_before"), "x'' = -a", "incline_cart", _bumper_cart),
+              ("restitution", "bounces", "x0", "rest_before"), "s'' = -a", "incline_cart", _bumper_cart),
     SceneInfo("bouncing_ball", "g", (1.62, 9.80665, 24.79), "m/s^2",
               "a ball held, dropped and bouncing on the floor", None,
               ("restitution", "bounces", "h0", "rest_before"), THROW_EQUATION, "throw", _bouncing_ball),
     SceneInfo("sliding_puck", "a", (0.5, 1.5, 3.0), "m/s^2",
               "a puck pushed by a hand across a table, sliding until friction stops it", None,
-              ("rest_before", "push_s", "rest_after", "slide", "dot"), "x'' = -a", "incline_cart", _sliding_puck),
+              ("rest_before", "push_s", "rest_after", "slide", "dot"), "s'' = -a", "incline_cart", _sliding_puck),
 )}
 
 
