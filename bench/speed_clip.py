@@ -271,8 +271,7 @@ def _print(record) -> None:
     for r in record["clips"]:
         row = {"clip": r["clip"], "decode s": f"{min(r['decode_s']):.2f}", "command s": f"{min(r['fit_s']):.2f}",
                "ratio": f"{r['ratio']:.1f}x"}
-        row.update({c: f"{r['stages_s'][c]:.2f}" for c in COLUMNS})
-        row.update({c: f"{r['stages_s'][c]:.2f}" if c in r["stages_s"] else "-" for c in PARTS})
+        row.update({c: f"{r['stages_s'][c]:.2f}" for c in [*COLUMNS, *PARTS]})
         held = r["stages_s"].get("imports") or {}
         row["of which imports"] = (f"{held['total']:.2f} (" + ", ".join(f"{k} {v:.2f}" for k, v in held["biggest"].items())
                                    + ")") if held else "-"

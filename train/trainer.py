@@ -445,15 +445,14 @@ def _stretch(latent: np.ndarray, plan: FitPlan, gauges,
     system, params, config = plan.system, plan.params, plan.config
     warm = dict(restart_inits(system, params, 1, config.seed, plan.init)[0])
     x = latent[:n]
-    if plan.observation.physical_units:
-        # a zero the fit refines (the angle's, observe.angle) is one for the whole clip: free in each
-        # stretch the search tries, a hold is a swing at rest about a shifted zero (a held pendulum's
-        # 1.8 s at 43 degrees joined its swing as "one trajectory", and the fit of both failed); held
-        # as read, a zero read 0.68 degrees off (a swing of 56 degrees) left no two swings one trajectory
-        with _threads(config.threads):
-            x = _zeroed(x, plan, gauges, warm)
-        gauges = {s: replace(g, offset_learned=False) for s, g in gauges.items()}
     with _threads(config.threads):
+        if plan.observation.physical_units:
+            # a zero the fit refines (the angle's, observe.angle) is one for the whole clip: free in each
+            # stretch the search tries, a hold is a swing at rest about a shifted zero (a held pendulum's
+            # 1.8 s at 43 degrees joined its swing as "one trajectory", and the fit of both failed); held
+            # as read, a zero read 0.68 degrees off (a swing of 56 degrees) left no two swings one trajectory
+            x = _zeroed(x, plan, gauges, warm)
+            gauges = {s: replace(g, offset_learned=False) for s, g in gauges.items()}
         first = screen(system, params, x, plan.dt, warm, gauge=gauges,
                        integrator=config.integrator, substeps=config.substeps)
     if first is not None:

@@ -118,12 +118,12 @@ def _sense(stack: np.ndarray, base: np.ndarray, floor: float) -> int:
 def _line(change: np.ndarray, floor: float) -> tuple[np.ndarray, np.ndarray, tuple[float, float]] | None:
     """One frame's line through the pixels whose change (in the line's sense) exceeds floor:
     (a point on it (x, y), its unit direction, where its ends lie from that point along the
-    direction (the 1st and 99th percentiles)) or None where they make no thin line. Weighted by their change; robust to a
-    few pixels beside it (the bob, a speck of noise)."""
+    direction (the 1st and 99th percentiles)) or None where they make no thin line. Weighted by
+    their change; robust to a few pixels beside it (the bob, a speck of noise)."""
     mask = (change > floor).astype(np.uint8)
     if int(mask.sum()) < MIN_PIXELS:
         return None
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     keep = np.flatnonzero(stats[1:, cv2.CC_STAT_AREA] >= SPECKLE) + 1
     if not len(keep):
         return None
